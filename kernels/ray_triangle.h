@@ -1,0 +1,122 @@
+/* Ray setup, the robust slab test and the watertight ray/triangle test,
+ * shared by every traversal on CPU and GPU. */
+#ifndef AS_RAY_TRIANGLE_H
+#define AS_RAY_TRIANGLE_H
+
+#include "as_kernel_common.h"
+
+/* A ray prepared for traversal. */
+typedef struct as_ray_pre {
+    float ox, oy, oz;
+    float dx, dy, dz;
+    float ix, iy, iz;       /* 1/d; a zero component (either sign) is +inf */
+    float tmin, tmax;
+    int kx, ky, kz;         /* kz: the dominant axis of d (Woop et al. 2013) */
+    float sx, sy, sz;       /* shear constants */
+} as_ray_pre_t;
+
+AS_HD int as_is_finite(float x) { return (as_float_as_uint(x) & 0x7f800000u) != 0x7f800000u; }
+
+/* Prepares a ray; returns 0 for a ray that can hit nothing by definition:
+ * NaN or infinite origin or direction, zero direction, tmin > tmax or NaN
+ * limits. Such rays report a miss without traversal. */
+AS_HD int as_ray_prepare(const float org[3], float tmin, const float dir[3], float tmax,
+                         as_ray_pre_t *r)
+{
+    if (!as_is_finite(org[0]) || !as_is_finite(org[1]) || !as_is_finite(org[2]) ||
+        !as_is_finite(dir[0]) || !as_is_finite(dir[1]) || !as_is_finite(dir[2]))
+        return 0;
+    if (!(tmin <= tmax)) return 0; /* also false for NaN */
+    if (dir[0] == 0.0f && dir[1] == 0.0f && dir[2] == 0.0f) return 0;
+    r->ox = org[0]; r->oy = org[1]; r->oz = org[2];
+    /* -0 and +0 must behave alike: both become +0, whose inverse is +inf.
+     * The slab test below then yields NaN exactly when the origin lies on a
+     * slab plane, and fmaxf/fminf drop that NaN, which counts the plane as
+     * inside the slab. */
+    r->dx = dir[0] == 0.0f ? 0.0f : dir[0];
+    r->dy = dir[1] == 0.0f ? 0.0f : dir[1];
+    r->dz = dir[2] == 0.0f ? 0.0f : dir[2];
+    r->ix = 1.0f / r->dx;
+    r->iy = 1.0f / r->dy;
+    r->iz = 1.0f / r->dz;
+    r->tmin = tmin;
+    r->tmax = tmax;
+    const float ax = fabsf(r->dx), ay = fabsf(r->dy), az = fabsf(r->dz);
+    int kz = ax > ay ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
+    int kx = kz == 2 ? 0 : kz + 1;
+    int ky = kx == 2 ? 0 : kx + 1;
+    const float d[3] = {r->dx, r->dy, r->dz};
+    if (d[kz] < 0.0f) { const int t = kx; kx = ky; ky = t; } /* keep the winding */
+    r->kx = kx; r->ky = ky; r->kz = kz;
+    r->sx = d[kx] / d[kz];
+    r->sy = d[ky] / d[kz];
+    r->sz = 1.0f / d[kz];
+    return 1;
+}
+
+/* 1 + 2 gamma(3): scaling the far slab distance by it makes the box test
+ * conservative under rounding (Ize 2013, "Robust BVH Ray Traversal"). */
+#define AS_BOX_FAR_SCALE 1.00000024f
+
+/* Whether the ray enters the box [lo, hi] within [tmin, tfar_limit]; the
+ * entry distance goes to *tnear. */
+AS_HD int as_ray_box(const as_ray_pre_t *r, float lox, float hix, float loy, float hiy,
+                     float loz, float hiz, float tfar_limit, float *tnear)
+{
+    const float nx = r->ix >= 0.0f ? lox : hix, fx = r->ix >= 0.0f ? hix : lox;
+    const float ny = r->iy >= 0.0f ? loy : hiy, fy = r->iy >= 0.0f ? hiy : loy;
+    const float nz = r->iz >= 0.0f ? loz : hiz, fz = r->iz >= 0.0f ? hiz : loz;
+    const float t0x = AS_MUL(AS_SUB(nx, r->ox), r->ix), t1x = AS_MUL(AS_SUB(fx, r->ox), r->ix);
+    const float t0y = AS_MUL(AS_SUB(ny, r->oy), r->iy), t1y = AS_MUL(AS_SUB(fy, r->oy), r->iy);
+    const float t0z = AS_MUL(AS_SUB(nz, r->oz), r->iz), t1z = AS_MUL(AS_SUB(fz, r->oz), r->iz);
+    const float tn = AS_MAXF(AS_MAXF(t0x, t0y), AS_MAXF(t0z, r->tmin));
+    const float tf = AS_MINF(AS_MINF(t1x, t1y), AS_MINF(t1z, tfar_limit)) * AS_BOX_FAR_SCALE;
+    *tnear = tn;
+    return tn <= tf;
+}
+
+/* Watertight ray/triangle intersection (Woop, Benthin & Wald 2013), no
+ * culling. Returns 1 and sets *t, *u, *v when the ray hits the triangle with
+ * tmin <= t <= tmax_now, where the hit point is (1-u-v) a + u b + v c.
+ * Triangles with zero projected area are never hit. */
+AS_HD int as_ray_triangle(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+                          float tmax_now, float *t_out, float *u_out, float *v_out)
+{
+    const float o[3] = {r->ox, r->oy, r->oz};
+    const int kx = r->kx, ky = r->ky, kz = r->kz;
+    const float A_x = AS_SUB(a[kx], o[kx]), A_y = AS_SUB(a[ky], o[ky]), A_z = AS_SUB(a[kz], o[kz]);
+    const float B_x = AS_SUB(b[kx], o[kx]), B_y = AS_SUB(b[ky], o[ky]), B_z = AS_SUB(b[kz], o[kz]);
+    const float C_x = AS_SUB(c[kx], o[kx]), C_y = AS_SUB(c[ky], o[ky]), C_z = AS_SUB(c[kz], o[kz]);
+    const float Ax = AS_SUB(A_x, AS_MUL(r->sx, A_z)), Ay = AS_SUB(A_y, AS_MUL(r->sy, A_z));
+    const float Bx = AS_SUB(B_x, AS_MUL(r->sx, B_z)), By = AS_SUB(B_y, AS_MUL(r->sy, B_z));
+    const float Cx = AS_SUB(C_x, AS_MUL(r->sx, C_z)), Cy = AS_SUB(C_y, AS_MUL(r->sy, C_z));
+    float U = AS_SUB(AS_MUL(Cx, By), AS_MUL(Cy, Bx));
+    float V = AS_SUB(AS_MUL(Ax, Cy), AS_MUL(Ay, Cx));
+    float W = AS_SUB(AS_MUL(Bx, Ay), AS_MUL(By, Ax));
+    /* On an edge the float products cancel to exactly zero and their sign is
+     * unreliable: redo them in double, where the products are exact. */
+    if (U == 0.0f || V == 0.0f || W == 0.0f) {
+        U = (float)((double)Cx * (double)By - (double)Cy * (double)Bx);
+        V = (float)((double)Ax * (double)Cy - (double)Ay * (double)Cx);
+        W = (float)((double)Bx * (double)Ay - (double)By * (double)Ax);
+    }
+    if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return 0;
+    const float det = AS_ADD(AS_ADD(U, V), W);
+    if (det == 0.0f) return 0;
+    const float Az = AS_MUL(r->sz, A_z), Bz = AS_MUL(r->sz, B_z), Cz = AS_MUL(r->sz, C_z);
+    const float T = AS_ADD(AS_ADD(AS_MUL(U, Az), AS_MUL(V, Bz)), AS_MUL(W, Cz));
+    /* Compare T/det with the ray interval without dividing. */
+    const uint32_t sign = as_float_as_uint(det) & 0x80000000u;
+    const float Ts = as_uint_as_float(as_float_as_uint(T) ^ sign);
+    const float dets = as_uint_as_float(as_float_as_uint(det) ^ sign);
+    if (Ts < AS_MUL(r->tmin, dets) || Ts > AS_MUL(tmax_now, dets)) return 0;
+    const float rcp = 1.0f / det;
+    const float t = AS_MUL(T, rcp);
+    if (!(t >= r->tmin && t <= tmax_now)) return 0; /* rounding of the division */
+    *t_out = t;
+    *u_out = AS_MUL(V, rcp);
+    *v_out = AS_MUL(W, rcp);
+    return 1;
+}
+
+#endif

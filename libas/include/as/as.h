@@ -1,0 +1,336 @@
+/*
+ * libas: acceleration structures for ray tracing.
+ *
+ * The whole public C API. Conventions, as in Embree's rtcore.h and zstd.h:
+ *  - opaque handles; functions that create one return NULL on failure and set
+ *    the per-thread last error; release functions accept NULL;
+ *  - argument structs start with a `size` field and have a function that
+ *    fills in the defaults, so they can grow without breaking callers; NULL
+ *    for an argument struct means "defaults";
+ *  - every function that can fail either returns an as_error_t or returns
+ *    NULL/0 and sets the last error, which as_get_error() and
+ *    as_get_error_message() read on the same thread.
+ * All functions are thread-safe unless their comment says otherwise; a
+ * handle may be read from several threads at once but not released while in
+ * use.
+ */
+#ifndef AS_AS_H
+#define AS_AS_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "as/as_version.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ------------------------------------------------------------------------ */
+/* Version                                                                  */
+
+/* The version of the library that is running, as
+ * MAJOR * 10000 + MINOR * 100 + PATCH (compare with AS_VERSION_NUMBER, the
+ * version the caller was compiled against). */
+unsigned as_version_number(void);
+/* The same as "MAJOR.MINOR.PATCH"; a static string. */
+const char *as_version_string(void);
+
+/* ------------------------------------------------------------------------ */
+/* Errors                                                                   */
+
+/* Error codes. Values below AS_ERROR_MAX_STABLE are pinned: they never change
+ * meaning between versions. */
+typedef enum as_error {
+    AS_OK = 0,
+    AS_ERROR_UNKNOWN = 1,
+    AS_ERROR_INVALID_ARGUMENT = 2, /* a caller passed a bad argument */
+    AS_ERROR_OUT_OF_MEMORY = 3,
+    AS_ERROR_CANCELLED = 4,        /* a progress callback returned false */
+    AS_ERROR_IO = 10,              /* open, read, write, map or rename failed */
+    AS_ERROR_FILE_NOT_FOUND = 11,
+    AS_ERROR_PARSE = 20,           /* the input file cannot be parsed */
+    AS_ERROR_INVALID_MESH = 21,    /* NaN/Inf coordinates, bad indices, empty */
+    AS_ERROR_CORRUPT = 22,         /* a container or record file is damaged */
+    AS_ERROR_CHECKSUM = 23,        /* a section's checksum does not match */
+    AS_ERROR_INVALID_STRUCTURE = 24, /* structure validation failed */
+    AS_ERROR_VERSION = 30,         /* a newer major version than this build reads */
+    AS_ERROR_UNSUPPORTED = 31,     /* unknown required section, kind or layout */
+    AS_ERROR_NO_DEVICE = 40,       /* a GPU was asked for and none is usable */
+    AS_ERROR_DEVICE = 41,          /* the CUDA runtime reported an error */
+    AS_ERROR_MAX_STABLE = 100
+} as_error_t;
+
+/* The enumerator's name without its prefix ("CORRUPT"); "UNKNOWN_CODE" for a
+ * value that is not a code. Static string. */
+const char *as_error_name(as_error_t code);
+
+/* The last error set on this thread by a libas function, and its message
+ * (the context: file, section, offset, line, primitive). The message is
+ * "" when the code is AS_OK. It stays valid until the next libas call on this
+ * thread. Errors are sticky: successful calls do not clear them. */
+as_error_t as_get_error(void);
+const char *as_get_error_message(void);
+void as_clear_error(void);
+
+/* The exit code the libas tools use for an error (0 ok, 1 usage, 2 I/O,
+ * 3 invalid input file, 4 runtime or library error, 5 unsupported). */
+int as_error_exit_code(as_error_t code);
+
+/* ------------------------------------------------------------------------ */
+/* Meshes                                                                   */
+
+typedef struct as_mesh as_mesh_t;
+
+/* Reads a triangle mesh: OBJ, PLY, OFF, STL (through OpenMesh's parsers) or
+ * Draco .drc, chosen by the extension; NAME.EXT.zst is decompressed first.
+ * Every face of the file is kept in file order: a face with k > 3 corners
+ * becomes k - 2 consecutive triangles (a fan), zero-area triangles are kept
+ * (they are never hit) and counted. Normals, UVs and material ids are kept
+ * only when the file has them. Fails with FILE_NOT_FOUND, IO, PARSE or
+ * INVALID_MESH and a message naming the file. */
+as_mesh_t *as_mesh_import(const char *path);
+
+/* Makes a mesh from caller arrays (copied): positions are 3 floats per vertex,
+ * indices 3 per triangle. Validated like an imported mesh. */
+as_mesh_t *as_mesh_create(uint32_t vertex_count, const float *positions,
+                          uint32_t triangle_count, const uint32_t *indices);
+
+void as_mesh_release(as_mesh_t *mesh);
+
+typedef struct as_mesh_info {
+    uint32_t vertex_count;
+    uint32_t triangle_count;
+    uint64_t faces_in_file;      /* faces the file lists (before fans) */
+    uint32_t polygon_faces;      /* faces with more than 3 corners */
+    uint32_t degenerate_count;   /* zero-area triangles kept, never hit */
+    bool has_normals, has_uvs, has_materials;
+    float bounds_lo[3], bounds_hi[3];
+    uint64_t hash;               /* XXH3-64 of positions then indices */
+} as_mesh_info_t;
+
+void as_mesh_get_info(const as_mesh_t *mesh, as_mesh_info_t *info);
+/* Arrays owned by the mesh; NULL where the file had none. */
+const float *as_mesh_positions(const as_mesh_t *mesh);    /* 3 per vertex */
+const uint32_t *as_mesh_indices(const as_mesh_t *mesh);   /* 3 per triangle */
+const float *as_mesh_normals(const as_mesh_t *mesh);      /* 3 per vertex */
+const float *as_mesh_uvs(const as_mesh_t *mesh);          /* 2 per vertex */
+const uint32_t *as_mesh_material_ids(const as_mesh_t *mesh); /* 1 per triangle */
+
+/* ------------------------------------------------------------------------ */
+/* Structures                                                               */
+
+/* On-disk enums: sparse values by family, never renumbered. */
+typedef enum as_structure_kind {
+    AS_STRUCT_BVH = 0x0100
+} as_structure_kind_t;
+
+typedef enum as_layout {
+    /* Binary BVH whose 64-byte nodes hold both children's boxes (Aila &
+     * Laine 2009), triangles as 3 x float4 in leaf order. */
+    AS_LAYOUT_BVH2_CHILD_BOUNDS = 0x0101
+} as_layout_t;
+
+typedef enum as_builder {
+    AS_BUILDER_BVH_SAH_BINNED = 0x0101
+} as_builder_t;
+
+typedef bool (*as_progress_fn)(void *user, double fraction);
+
+typedef struct as_build_args {
+    size_t size;                 /* sizeof(as_build_args_t) */
+    as_structure_kind_t structure;
+    as_builder_t builder;
+    uint32_t max_leaf_size;      /* leaves hold at most this many triangles
+                                    unless the depth cap forces more */
+    uint32_t bin_count;          /* SAH bins per axis (binned builder) */
+    float cost_traversal;        /* SAH cost of one node visit */
+    float cost_intersection;     /* SAH cost of one triangle test */
+    uint32_t thread_count;       /* 0: every core */
+    as_progress_fn progress;     /* may be NULL; false cancels the build */
+    void *progress_user;
+} as_build_args_t;
+
+void as_build_args_default(as_build_args_t *args);
+
+typedef struct as_structure as_structure_t;
+
+/* Builds a structure over a mesh. The result does not refer to the mesh. The
+ * same mesh and arguments give byte-identical sections whatever the thread
+ * count. */
+as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t *args);
+
+typedef struct as_save_args {
+    size_t size;
+    int compression_level;       /* 0: store raw; 1..22: zstd level */
+} as_save_args_t;
+void as_save_args_default(as_save_args_t *args);
+
+/* Writes the structure to an .asf file: to a temporary file beside it, then
+ * renamed over the target, so a failure never leaves half a file. */
+as_error_t as_structure_save(const as_structure_t *s, const char *path,
+                             const as_save_args_t *args);
+
+typedef struct as_load_args {
+    size_t size;
+    bool verify_checksums;       /* default true */
+} as_load_args_t;
+void as_load_args_default(as_load_args_t *args);
+
+/* Maps an .asf file (uncompressed sections are used in place; compressed ones
+ * are decompressed). Checks every offset and size against the file, refuses
+ * newer major versions, unknown required sections and structures this build
+ * cannot trace, and verifies checksums. */
+as_structure_t *as_structure_load(const char *path, const as_load_args_t *args);
+/* The same from memory the caller keeps alive while the structure lives;
+ * `name` is used in messages. */
+as_structure_t *as_structure_load_memory(const void *data, size_t size, const char *name,
+                                         const as_load_args_t *args);
+
+void as_structure_release(as_structure_t *s);
+
+/* Checks the structure itself: indices in range, each node referenced once,
+ * children inside their parent's box, depth within the traversal stack,
+ * finite floats. Returns AS_ERROR_INVALID_STRUCTURE with a message naming
+ * the node on failure. */
+as_error_t as_structure_validate(const as_structure_t *s);
+
+#define AS_HISTOGRAM_BINS 65
+
+typedef struct as_structure_stats {
+    as_structure_kind_t structure;
+    as_layout_t layout;
+    uint32_t layout_version;
+    as_builder_t builder;
+    uint32_t max_leaf_size, bin_count;
+    float cost_traversal, cost_intersection;
+    uint32_t triangle_count;
+    uint64_t node_count;          /* inner nodes */
+    uint64_t leaf_count;
+    uint32_t max_depth;           /* root = depth 0 */
+    double average_leaf_depth;
+    double sah_cost;              /* expected cost per ray, SAH with the costs above */
+    uint64_t structure_bytes;     /* raw bytes of every section */
+    double build_ms;              /* for a structure just built; 0 when loaded */
+    uint64_t source_hash;
+    float bounds_lo[3], bounds_hi[3];
+    uint64_t depth_histogram[AS_HISTOGRAM_BINS];      /* leaves per depth (last bin: deeper) */
+    uint64_t leaf_size_histogram[AS_HISTOGRAM_BINS];  /* leaves per size (last bin: larger) */
+    char writer[32];
+    uint32_t writer_version;
+} as_structure_stats_t;
+
+as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *stats);
+
+/* Sections of the structure (for inspection). */
+typedef struct as_section_info {
+    char tag[5];                 /* four characters and a NUL */
+    bool required;
+    bool compressed;             /* zstd in the file */
+    int checksum_status;         /* 1 verified, 0 not checked, -1 mismatch */
+    uint64_t offset;             /* in the file; 0 for a built structure */
+    uint64_t stored_bytes, raw_bytes, element_count;
+    uint32_t stride;
+    uint64_t checksum;           /* XXH3-64 of the raw bytes */
+    const char *purpose;         /* what the section is for; static string */
+} as_section_info_t;
+
+uint32_t as_structure_section_count(const as_structure_t *s);
+as_error_t as_structure_section_info(const as_structure_t *s, uint32_t index,
+                                     as_section_info_t *info);
+
+/* ------------------------------------------------------------------------ */
+/* Rays, hits and tracing                                                   */
+
+/* 32 bytes, the record of a ray file. A ray covers t in [tmin, tmax]. */
+typedef struct as_ray {
+    float org[3];
+    float tmin;
+    float dir[3];
+    float tmax;
+} as_ray_t;
+
+#define AS_NO_HIT 0xFFFFFFFFu
+
+/* 16 bytes, the record of a hit file. On a miss t is +infinity and prim is
+ * AS_NO_HIT. prim is the triangle's index in the source mesh; the hit point is
+ * (1 - u - v) v0 + u v1 + v v2. */
+typedef struct as_hit {
+    float t;
+    uint32_t prim;
+    float u, v;
+} as_hit_t;
+
+typedef enum as_device {
+    AS_DEVICE_AUTO = 0,          /* the GPU when one is usable, else the CPU */
+    AS_DEVICE_CPU = 1,
+    AS_DEVICE_GPU = 2
+} as_device_t;
+
+typedef struct as_trace_args {
+    size_t size;
+    as_device_t device;
+    uint32_t thread_count;       /* CPU: 0 = every core */
+    bool any_hit;                /* stop at the first hit (shadow rays) */
+    uint32_t timed_runs;         /* GPU: launches to time, median reported; default 5 */
+} as_trace_args_t;
+void as_trace_args_default(as_trace_args_t *args);
+
+typedef struct as_trace_timing {
+    as_device_t device;          /* where it ran */
+    double trace_ms;             /* the trace alone: median of the timed launches
+                                    on the GPU (device events), wall clock on the CPU */
+    double upload_ms;            /* GPU: structure and rays to the device */
+    uint64_t upload_bytes;
+    char device_name[128];
+} as_trace_timing_t;
+
+/* Traces `count` rays. `timing` may be NULL. */
+as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
+                    as_hit_t *hits, const as_trace_args_t *args, as_trace_timing_t *timing);
+
+/* True when this build has CUDA and a device is usable. */
+bool as_gpu_available(void);
+
+/* Ray and hit files (formats/SPEC.md). The read functions allocate *out with
+ * malloc; the caller frees it. Writers write to a temporary file and rename. */
+as_error_t as_rays_read(const char *path, as_ray_t **out, size_t *count);
+as_error_t as_rays_write(const char *path, const as_ray_t *rays, size_t count);
+as_error_t as_hits_read(const char *path, as_hit_t **out, size_t *count);
+as_error_t as_hits_write(const char *path, const as_hit_t *hits, size_t count);
+/* The same parsers over memory (used by the fuzzers); `name` is used in messages. */
+as_error_t as_rays_parse(const void *data, size_t size, const char *name,
+                         as_ray_t **out, size_t *count);
+as_error_t as_hits_parse(const void *data, size_t size, const char *name,
+                         as_hit_t **out, size_t *count);
+
+/* ------------------------------------------------------------------------ */
+/* Cameras and images                                                       */
+
+typedef struct as_camera {
+    float eye[3], target[3], up[3];
+    float fov_y_degrees;         /* vertical field of view */
+} as_camera_t;
+
+/* A camera that sees the whole box: looking along -z from in front of it,
+ * up +y, 45 degrees, at a distance that fits the bounding sphere. */
+void as_camera_default(const float bounds_lo[3], const float bounds_hi[3], as_camera_t *cam);
+
+/* One ray per pixel through the pixel centres, row-major from the top-left,
+ * right-handed (x right, y up, looking down -z in camera space), tmin 0,
+ * tmax infinity. `rays` has width * height entries. */
+void as_camera_rays(const as_camera_t *cam, uint32_t width, uint32_t height, as_ray_t *rays);
+
+/* Shades the hits of as_camera_rays as a grey image lit from the camera (the
+ * absolute cosine between the ray and the geometric normal), background dark
+ * blue, and writes it as an 8-bit RGB PNG (temporary file, then rename). */
+as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays,
+                              const as_hit_t *hits, uint32_t width, uint32_t height,
+                              const char *path);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

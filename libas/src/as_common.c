@@ -1,0 +1,87 @@
+/* Common layer: version, memory, clocks, threads, hashing. */
+#define _POSIX_C_SOURCE 200809L
+#include "as_internal.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <time.h>
+#include <unistd.h>
+
+#define XXH_INLINE_ALL
+#include <xxhash.h>
+
+unsigned as_version_number(void) { return AS_VERSION_NUMBER; }
+const char *as_version_string(void) { return AS_VERSION_STRING; }
+
+void *as_malloc(size_t bytes, const char *what)
+{
+    void *p = malloc(bytes ? bytes : 1);
+    if (!p) as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
+    return p;
+}
+
+void *as_calloc(size_t count, size_t size, const char *what)
+{
+    void *p = calloc(count ? count : 1, size ? size : 1);
+    if (!p) as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu x %zu bytes for %s", count, size, what);
+    return p;
+}
+
+double as_now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+unsigned as_thread_count(unsigned requested)
+{
+    if (requested) return requested;
+    const long n = sysconf(_SC_NPROCESSORS_ONLN);
+    return n > 0 ? (unsigned)n : 1u;
+}
+
+typedef struct parallel_job {
+    as_parallel_fn fn;
+    void *user;
+    size_t count;
+    atomic_size_t next;
+} parallel_job;
+
+static void *parallel_worker(void *arg)
+{
+    parallel_job *job = arg;
+    for (;;) {
+        const size_t i = atomic_fetch_add(&job->next, 1);
+        if (i >= job->count) break;
+        job->fn(job->user, i);
+    }
+    return NULL;
+}
+
+void as_parallel_for(unsigned threads, size_t count, as_parallel_fn fn, void *user)
+{
+    parallel_job job = {fn, user, count, 0};
+    if (threads > count) threads = (unsigned)count;
+    if (threads <= 1) {
+        parallel_worker(&job);
+        return;
+    }
+    pthread_t *tids = malloc(sizeof(pthread_t) * (threads - 1));
+    unsigned started = 0;
+    if (tids) {
+        for (; started < threads - 1; ++started)
+            if (pthread_create(&tids[started], NULL, parallel_worker, &job) != 0) break;
+    }
+    parallel_worker(&job); /* the caller works too; if threads failed to start, alone */
+    for (unsigned t = 0; t < started; ++t) pthread_join(tids[t], NULL);
+    free(tids);
+}
+
+uint64_t as_hash64(const void *data, size_t bytes) { return XXH3_64bits(data, bytes); }
+
+uint64_t as_hash64_seeded(const void *data, size_t bytes, uint64_t seed)
+{
+    return XXH3_64bits_withSeed(data, bytes, seed);
+}

@@ -1,0 +1,56 @@
+/* Internal common layer of libas: errors, memory, clocks, threads. It depends
+ * on nothing but libc. */
+#ifndef AS_INTERNAL_H
+#define AS_INTERNAL_H
+
+#include "as/as.h"
+
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#if defined(__GNUC__)
+#define AS_PRINTF(f, a) __attribute__((format(printf, f, a)))
+#else
+#define AS_PRINTF(f, a)
+#endif
+
+/* Sets this thread's last error and returns `code`, so that error paths read
+ * `return as_set_error(AS_ERROR_CORRUPT, "%s: ...", path);`. */
+as_error_t as_set_error(as_error_t code, const char *fmt, ...) AS_PRINTF(2, 3);
+as_error_t as_set_errorv(as_error_t code, const char *fmt, va_list ap);
+
+/* malloc/calloc that set AS_ERROR_OUT_OF_MEMORY (naming `what`) on failure. */
+void *as_malloc(size_t bytes, const char *what);
+void *as_calloc(size_t count, size_t size, const char *what);
+
+/* Overflow-safe size arithmetic: return false on overflow. */
+static inline int as_add_u64(uint64_t a, uint64_t b, uint64_t *out)
+{
+    if (a > UINT64_MAX - b) return 0;
+    *out = a + b;
+    return 1;
+}
+static inline int as_mul_u64(uint64_t a, uint64_t b, uint64_t *out)
+{
+    if (a != 0 && b > UINT64_MAX / a) return 0;
+    *out = a * b;
+    return 1;
+}
+
+/* Monotonic clock in milliseconds. */
+double as_now_ms(void);
+
+/* Number of worker threads for a request (0: online cores). */
+unsigned as_thread_count(unsigned requested);
+
+/* Runs fn(user, i) for i in [0, count) on `threads` threads (the caller's
+ * among them); items are handed out in order from a shared counter. */
+typedef void (*as_parallel_fn)(void *user, size_t index);
+void as_parallel_for(unsigned threads, size_t count, as_parallel_fn fn, void *user);
+
+/* XXH3-64 of a byte range. */
+uint64_t as_hash64(const void *data, size_t bytes);
+uint64_t as_hash64_seeded(const void *data, size_t bytes, uint64_t seed);
+
+#endif

@@ -1,0 +1,371 @@
+/* Structures: building (dispatch to one builder per kind), saving to and
+ * loading from .asf files, statistics and section listing. */
+#include "structure.h"
+#include "bvh2_layout.h"
+#include "mesh.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const uint32_t known_tags[] = {ASF_TAG_META, ASF_TAG_BVH2, ASF_TAG_TRI4};
+
+void *as_aligned_alloc(size_t bytes, const char *what)
+{
+    const size_t rounded = (bytes + 63) / 64 * 64;
+    void *p = aligned_alloc(64, rounded ? rounded : 64);
+    if (!p) as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
+    return p;
+}
+
+void as_structure_add_section(as_structure_t *s, uint32_t tag, void *data, uint64_t count,
+                              uint32_t stride)
+{
+    as_section_t *sec = &s->sections[s->section_count++];
+    memset(sec, 0, sizeof *sec);
+    sec->tag = tag;
+    sec->flags = ASF_SECTION_REQUIRED;
+    sec->data = data;
+    sec->owned = data;
+    sec->count = count;
+    sec->stride = stride;
+    sec->bytes = count * stride;
+    sec->file_index = -1;
+}
+
+const as_section_t *as_structure_find(const as_structure_t *s, uint32_t tag)
+{
+    for (uint32_t i = 0; i < s->section_count; ++i)
+        if (s->sections[i].tag == tag) return &s->sections[i];
+    return NULL;
+}
+
+void as_build_args_default(as_build_args_t *args)
+{
+    memset(args, 0, sizeof *args);
+    args->size = sizeof *args;
+    args->structure = AS_STRUCT_BVH;
+    args->builder = AS_BUILDER_BVH_SAH_BINNED;
+    args->max_leaf_size = 4;
+    args->bin_count = 32;
+    /* Aila & Laine's GPU measurements put a node visit at about the cost of
+     * one triangle test with the child-bounds layout. */
+    args->cost_traversal = 1.0f;
+    args->cost_intersection = 1.0f;
+}
+
+void as_save_args_default(as_save_args_t *args)
+{
+    memset(args, 0, sizeof *args);
+    args->size = sizeof *args;
+}
+
+void as_load_args_default(as_load_args_t *args)
+{
+    memset(args, 0, sizeof *args);
+    args->size = sizeof *args;
+    args->verify_checksums = true;
+}
+
+/* Copies the fields a caller's (possibly older, smaller) struct has over the
+ * defaults. */
+#define AS_ARGS_FROM_CALLER(type, dst, src, defaults_fn) do { \
+    defaults_fn(&(dst)); \
+    if (src) { \
+        const size_t _n = (src)->size < sizeof(type) ? (src)->size : sizeof(type); \
+        memcpy(&(dst), (src), _n); \
+        (dst).size = sizeof(type); \
+    } } while (0)
+
+as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t *user_args)
+{
+    if (!mesh) {
+        as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_build: mesh is NULL");
+        return NULL;
+    }
+    as_build_args_t args;
+    AS_ARGS_FROM_CALLER(as_build_args_t, args, user_args, as_build_args_default);
+    as_structure_t *s = as_calloc(1, sizeof *s, "structure");
+    if (!s) return NULL;
+    as_error_t err;
+    switch (args.structure) {
+    case AS_STRUCT_BVH:
+        if (args.builder != AS_BUILDER_BVH_SAH_BINNED) {
+            err = as_set_error(AS_ERROR_UNSUPPORTED, "builder 0x%04x is not a BVH builder of this version", (unsigned)args.builder);
+            break;
+        }
+        err = as_bvh_build_sah(mesh, &args, s);
+        break;
+    default:
+        err = as_set_error(AS_ERROR_UNSUPPORTED, "structure kind 0x%04x is not supported by this version", (unsigned)args.structure);
+    }
+    if (err != AS_OK) {
+        as_structure_release(s);
+        return NULL;
+    }
+    return s;
+}
+
+void as_structure_release(as_structure_t *s)
+{
+    if (!s) return;
+    for (uint32_t i = 0; i < s->section_count; ++i) free(s->sections[i].owned);
+    asf_close(s->file);
+    free(s);
+}
+
+as_error_t as_structure_save(const as_structure_t *s, const char *path, const as_save_args_t *user_args)
+{
+    if (!s || !path) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_save: NULL argument");
+    as_save_args_t args;
+    AS_ARGS_FROM_CALLER(as_save_args_t, args, user_args, as_save_args_default);
+    if (args.compression_level < 0 || args.compression_level > 22)
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "compression level %d is outside 0..22", args.compression_level);
+    asf_section_desc_t desc[AS_MAX_SECTIONS + 1];
+    uint32_t n = 0;
+    desc[n++] = (asf_section_desc_t){ASF_TAG_META, ASF_SECTION_REQUIRED, &s->meta, sizeof s->meta, 1,
+                                     sizeof s->meta, args.compression_level};
+    for (uint32_t i = 0; i < s->section_count; ++i) {
+        const as_section_t *sec = &s->sections[i];
+        desc[n++] = (asf_section_desc_t){sec->tag, sec->flags & ASF_SECTION_REQUIRED, sec->data, sec->bytes,
+                                         sec->count, sec->stride, args.compression_level};
+    }
+    return asf_write(path, desc, n);
+}
+
+/* Checks that the sections a kind needs are there with the right strides,
+ * and takes them from the file. */
+static as_error_t adopt_sections(as_structure_t *s, const char *name)
+{
+    asf_file_t *f = s->file;
+    const int mi = asf_find_section(f, ASF_TAG_META);
+    if (mi < 0) return as_set_error(AS_ERROR_CORRUPT, "%s: no META section", name);
+    const asf_section_entry_t *me = asf_section_entry(f, (uint32_t)mi);
+    if (me->raw_size != sizeof(as_meta_t))
+        return as_set_error(AS_ERROR_CORRUPT, "%s: META section (offset %llu) is %llu bytes, expected %zu", name,
+                            (unsigned long long)me->offset, (unsigned long long)me->raw_size, sizeof(as_meta_t));
+    memcpy(&s->meta, asf_section_data(f, (uint32_t)mi), sizeof s->meta);
+    int reserved_set = s->meta.reserved0 != 0 || s->meta.reserved1 != 0;
+    for (size_t i = 0; i < sizeof s->meta.reserved; ++i) reserved_set |= s->meta.reserved[i] != 0;
+    if (reserved_set)
+        return as_set_error(AS_ERROR_CORRUPT, "%s: META section (offset %llu) has non-zero reserved fields", name,
+                            (unsigned long long)me->offset);
+    if (memchr(s->meta.writer, '\0', sizeof s->meta.writer) == NULL)
+        return as_set_error(AS_ERROR_CORRUPT, "%s: META writer name is not NUL-terminated", name);
+    if (s->meta.structure_kind != AS_STRUCT_BVH)
+        return as_set_error(AS_ERROR_UNSUPPORTED, "%s: structure kind 0x%04x cannot be traced by this build (libas %s)",
+                            name, s->meta.structure_kind, AS_VERSION_STRING);
+    if (s->meta.layout != AS_LAYOUT_BVH2_CHILD_BOUNDS)
+        return as_set_error(AS_ERROR_UNSUPPORTED, "%s: layout 0x%04x cannot be traced by this build (libas %s)",
+                            name, s->meta.layout, AS_VERSION_STRING);
+    if (s->meta.layout_version > AS_BVH2_LAYOUT_VERSION)
+        return as_set_error(AS_ERROR_VERSION, "%s: layout version %u is newer than this build reads (%d)", name,
+                            s->meta.layout_version, AS_BVH2_LAYOUT_VERSION);
+    const struct { uint32_t tag; uint32_t stride; const char *what; } need[] = {
+        {ASF_TAG_BVH2, sizeof(as_bvh2_node_t), "BVH2"},
+        {ASF_TAG_TRI4, sizeof(as_tri4_t), "TRI4"},
+    };
+    for (size_t k = 0; k < sizeof need / sizeof need[0]; ++k) {
+        const int i = asf_find_section(f, need[k].tag);
+        if (i < 0) return as_set_error(AS_ERROR_CORRUPT, "%s: the BVH needs a %s section and the file has none", name, need[k].what);
+        const asf_section_entry_t *e = asf_section_entry(f, (uint32_t)i);
+        if (e->stride != need[k].stride)
+            return as_set_error(AS_ERROR_CORRUPT, "%s: section %s (offset %llu) has stride %u, expected %u", name,
+                                need[k].what, (unsigned long long)e->offset, e->stride, need[k].stride);
+        as_section_t *sec = &s->sections[s->section_count++];
+        memset(sec, 0, sizeof *sec);
+        sec->tag = e->tag;
+        sec->flags = e->flags;
+        sec->data = asf_section_data(f, (uint32_t)i);
+        sec->bytes = e->raw_size;
+        sec->count = e->element_count;
+        sec->stride = e->stride;
+        sec->file_index = i;
+    }
+    if (as_structure_find(s, ASF_TAG_BVH2)->count == 0)
+        return as_set_error(AS_ERROR_CORRUPT, "%s: BVH2 section has no nodes (the root is node 0)", name);
+    return AS_OK;
+}
+
+static as_structure_t *finish_load(asf_file_t *f, const char *name)
+{
+    if (!f) return NULL;
+    as_structure_t *s = as_calloc(1, sizeof *s, "structure");
+    if (!s) { asf_close(f); return NULL; }
+    s->file = f;
+    if (adopt_sections(s, name) != AS_OK) {
+        as_structure_release(s);
+        return NULL;
+    }
+    return s;
+}
+
+as_structure_t *as_structure_load(const char *path, const as_load_args_t *user_args)
+{
+    if (!path) { as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_load: path is NULL"); return NULL; }
+    as_load_args_t args;
+    AS_ARGS_FROM_CALLER(as_load_args_t, args, user_args, as_load_args_default);
+    const asf_open_args_t oa = {args.verify_checksums, known_tags, sizeof known_tags / sizeof known_tags[0]};
+    return finish_load(asf_open(path, &oa), path);
+}
+
+as_structure_t *as_structure_load_memory(const void *data, size_t size, const char *name,
+                                         const as_load_args_t *user_args)
+{
+    if (!name) name = "(memory)";
+    as_load_args_t args;
+    AS_ARGS_FROM_CALLER(as_load_args_t, args, user_args, as_load_args_default);
+    const asf_open_args_t oa = {args.verify_checksums, known_tags, sizeof known_tags / sizeof known_tags[0]};
+    return finish_load(asf_open_memory(data, size, name, &oa), name);
+}
+
+static double half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
+{
+    const double dx = (double)hix - lox, dy = (double)hiy - loy, dz = (double)hiz - loz;
+    if (!(dx >= 0 && dy >= 0 && dz >= 0)) return 0.0;
+    return dx * dy + dy * dz + dz * dx;
+}
+
+/* Walks the tree from the root with an explicit stack; the caller has
+ * validated it, or built it. */
+typedef struct bvh2_walk {
+    double sah;
+    uint64_t depth_sum;
+    as_structure_stats_t *stats;
+} bvh2_walk;
+
+static void bvh2_walk_tree(const as_structure_t *s, bvh2_walk *w)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2);
+    const as_bvh2_node_t *nodes = ns->data;
+    const double ci = s->meta.cost_intersection, ct = s->meta.cost_traversal;
+    const double root_area = half_area6(s->meta.bounds_lo[0], s->meta.bounds_hi[0], s->meta.bounds_lo[1],
+                                        s->meta.bounds_hi[1], s->meta.bounds_lo[2], s->meta.bounds_hi[2]);
+    struct { int32_t node; uint32_t depth; double area; } stack[AS_BVH2_MAX_DEPTH + 2];
+    int sp = 0;
+    stack[sp].node = 0; stack[sp].depth = 0; stack[sp].area = root_area; ++sp;
+    while (sp > 0) {
+        --sp;
+        const int32_t ni = stack[sp].node;
+        const uint32_t depth = stack[sp].depth;
+        const double area = stack[sp].area;
+        const as_bvh2_node_t *n = &nodes[ni];
+        w->sah += ct * (root_area > 0 ? area / root_area : 1.0);
+        const double ca[2] = {half_area6(n->xy0.x, n->xy0.y, n->xy0.z, n->xy0.w, n->z01.x, n->z01.y),
+                              half_area6(n->xy1.x, n->xy1.y, n->xy1.z, n->xy1.w, n->z01.z, n->z01.w)};
+        for (int k = 0; k < 2; ++k) {
+            if (n->child[k] >= 0) {
+                if (sp >= AS_BVH2_MAX_DEPTH + 2) continue; /* validated trees never get here */
+                stack[sp].node = n->child[k]; stack[sp].depth = depth + 1; stack[sp].area = ca[k]; ++sp;
+            } else {
+                w->sah += ci * n->count[k] * (root_area > 0 ? ca[k] / root_area : 1.0);
+                if (w->stats) {
+                    as_structure_stats_t *st = w->stats;
+                    if (n->count[k] == 0) continue; /* the empty sibling of a one-leaf tree */
+                    st->leaf_count++;
+                    if (depth + 1 > st->max_depth) st->max_depth = depth + 1;
+                    w->depth_sum += depth + 1;
+                    st->depth_histogram[depth + 1 < AS_HISTOGRAM_BINS ? depth + 1 : AS_HISTOGRAM_BINS - 1]++;
+                    st->leaf_size_histogram[n->count[k] < AS_HISTOGRAM_BINS ? n->count[k] : AS_HISTOGRAM_BINS - 1]++;
+                }
+            }
+        }
+    }
+}
+
+double as_bvh2_sah_cost(const as_structure_t *s)
+{
+    bvh2_walk w = {0, 0, NULL};
+    bvh2_walk_tree(s, &w);
+    return w.sah;
+}
+
+as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *st)
+{
+    if (!s || !st) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_get_stats: NULL argument");
+    memset(st, 0, sizeof *st);
+    /* The walk below follows child indices: only a valid tree may be walked. */
+    const as_error_t err = as_structure_validate(s);
+    if (err != AS_OK) return err;
+    st->structure = (as_structure_kind_t)s->meta.structure_kind;
+    st->layout = (as_layout_t)s->meta.layout;
+    st->layout_version = s->meta.layout_version;
+    st->builder = (as_builder_t)s->meta.builder;
+    st->max_leaf_size = s->meta.max_leaf_size;
+    st->bin_count = s->meta.bin_count;
+    st->cost_traversal = s->meta.cost_traversal;
+    st->cost_intersection = s->meta.cost_intersection;
+    st->triangle_count = s->meta.triangle_count;
+    st->build_ms = s->build_ms;
+    st->source_hash = s->meta.source_hash;
+    memcpy(st->bounds_lo, s->meta.bounds_lo, sizeof st->bounds_lo);
+    memcpy(st->bounds_hi, s->meta.bounds_hi, sizeof st->bounds_hi);
+    memcpy(st->writer, s->meta.writer, sizeof st->writer);
+    st->writer_version = s->meta.writer_version;
+    st->structure_bytes = sizeof(as_meta_t);
+    for (uint32_t i = 0; i < s->section_count; ++i) st->structure_bytes += s->sections[i].bytes;
+    st->node_count = as_structure_find(s, ASF_TAG_BVH2)->count;
+    bvh2_walk w = {0, 0, st};
+    bvh2_walk_tree(s, &w);
+    st->sah_cost = w.sah;
+    st->average_leaf_depth = st->leaf_count ? (double)w.depth_sum / (double)st->leaf_count : 0.0;
+    return AS_OK;
+}
+
+static const char *section_purpose(uint32_t tag)
+{
+    switch (tag) {
+    case ASF_TAG_META: return "writer, structure kind, layout and build parameters";
+    case ASF_TAG_BVH2: return "BVH nodes with both children's boxes, read by the traversal";
+    case ASF_TAG_TRI4: return "triangle vertices in leaf order with source indices, read by the traversal";
+    default: return "unknown to this version (optional, skipped)";
+    }
+}
+
+uint32_t as_structure_section_count(const as_structure_t *s)
+{
+    if (!s) return 0;
+    return s->file ? asf_section_count(s->file) : s->section_count + 1;
+}
+
+as_error_t as_structure_section_info(const as_structure_t *s, uint32_t index, as_section_info_t *info)
+{
+    if (!s || !info) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_section_info: NULL argument");
+    if (index >= as_structure_section_count(s))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "section index %u out of range", index);
+    memset(info, 0, sizeof *info);
+    uint32_t tag;
+    if (s->file) {
+        const asf_section_entry_t *e = asf_section_entry(s->file, index);
+        tag = e->tag;
+        info->required = (e->flags & ASF_SECTION_REQUIRED) != 0;
+        info->compressed = (e->flags & ASF_SECTION_ZSTD) != 0;
+        info->checksum_status = asf_section_checksum_verified(s->file, index) ? 1 : 0;
+        info->offset = e->offset;
+        info->stored_bytes = e->stored_size;
+        info->raw_bytes = e->raw_size;
+        info->element_count = e->element_count;
+        info->stride = e->stride;
+        info->checksum = e->checksum;
+    } else if (index == 0) {
+        tag = ASF_TAG_META;
+        info->required = true;
+        info->stored_bytes = info->raw_bytes = sizeof s->meta;
+        info->element_count = 1;
+        info->stride = sizeof s->meta;
+        info->checksum = as_hash64(&s->meta, sizeof s->meta);
+    } else {
+        const as_section_t *sec = &s->sections[index - 1];
+        tag = sec->tag;
+        info->required = (sec->flags & ASF_SECTION_REQUIRED) != 0;
+        info->stored_bytes = info->raw_bytes = sec->bytes;
+        info->element_count = sec->count;
+        info->stride = sec->stride;
+        info->checksum = as_hash64(sec->data, sec->bytes);
+    }
+    memcpy(info->tag, &tag, 4);
+    info->tag[4] = '\0';
+    info->purpose = section_purpose(tag);
+    return AS_OK;
+}

@@ -1,0 +1,46 @@
+/* Tracing front end: argument defaults and the choice of back end. */
+#include "structure.h"
+#include "trace_gpu.h"
+
+#include <string.h>
+
+void as_trace_args_default(as_trace_args_t *args)
+{
+    memset(args, 0, sizeof *args);
+    args->size = sizeof *args;
+    args->device = AS_DEVICE_AUTO;
+    args->timed_runs = 5;
+}
+
+bool as_gpu_available(void)
+{
+#ifdef AS_HAVE_CUDA
+    return as_gpu_device_count() > 0;
+#else
+    return false;
+#endif
+}
+
+as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                    const as_trace_args_t *user_args, as_trace_timing_t *timing)
+{
+    if (!s || (!rays && count) || (!hits && count))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_trace: NULL argument");
+    as_trace_args_t args;
+    as_trace_args_default(&args);
+    if (user_args) memcpy(&args, user_args, user_args->size < sizeof args ? user_args->size : sizeof args);
+    if (timing) memset(timing, 0, sizeof *timing);
+    as_device_t device = args.device;
+    if (device == AS_DEVICE_AUTO) device = as_gpu_available() ? AS_DEVICE_GPU : AS_DEVICE_CPU;
+    if (device == AS_DEVICE_CPU) return as_trace_cpu(s, rays, count, hits, &args, timing);
+#ifdef AS_HAVE_CUDA
+    if (!as_gpu_available())
+        return as_set_error(AS_ERROR_NO_DEVICE, "no usable CUDA device (use the CPU back end)");
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
+    if (!ns || !ts) return as_set_error(AS_ERROR_UNSUPPORTED, "the structure has no BVH2/TRI4 sections to trace");
+    return as_trace_gpu_bvh2(ns->data, ns->bytes, ts->data, ts->bytes, rays, count, hits, args.any_hit,
+                             args.timed_runs ? args.timed_runs : 1, timing);
+#else
+    return as_set_error(AS_ERROR_NO_DEVICE, "this build of libas has no CUDA back end");
+#endif
+}

@@ -1,0 +1,50 @@
+/* A small test harness: each test is a function; CHECK macros print both
+ * operands and the line on failure. A test program exits 0 when every check
+ * passed, 1 otherwise, and 77 (ctest's SKIP_RETURN_CODE) when it skipped. */
+#ifndef AS_TEST_UTIL_H
+#define AS_TEST_UTIL_H
+
+#include <inttypes.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static int test_failures;
+
+#define CHECK(cond) do { if (!(cond)) { \
+    fprintf(stderr, "%s:%d: CHECK(%s) failed\n", __FILE__, __LINE__, #cond); ++test_failures; } } while (0)
+#define CHECK_EQ_INT(a, b) do { long long _a = (long long)(a), _b = (long long)(b); if (_a != _b) { \
+    fprintf(stderr, "%s:%d: %s == %s failed: %lld != %lld\n", __FILE__, __LINE__, #a, #b, _a, _b); ++test_failures; } } while (0)
+#define CHECK_EQ_U64(a, b) do { unsigned long long _a = (unsigned long long)(a), _b = (unsigned long long)(b); if (_a != _b) { \
+    fprintf(stderr, "%s:%d: %s == %s failed: %llu != %llu\n", __FILE__, __LINE__, #a, #b, _a, _b); ++test_failures; } } while (0)
+#define CHECK_STR_CONTAINS(hay, needle) do { const char *_h = (hay), *_n = (needle); if (!_h || !strstr(_h, _n)) { \
+    fprintf(stderr, "%s:%d: \"%s\" does not contain \"%s\"\n", __FILE__, __LINE__, _h ? _h : "(null)", _n); ++test_failures; } } while (0)
+
+#define RUN_TEST(fn) do { int _before = test_failures; fn(); \
+    fprintf(stderr, "%s %s\n", test_failures == _before ? "ok  " : "FAIL", #fn); } while (0)
+#define TEST_EXIT() return test_failures ? 1 : 0
+
+#define TEST_SKIP 77
+
+/* Path of a scene in ../shared/scenes (AS_SCENES_DIR), or NULL when it is
+ * absent: then the caller skips, except under CI=true, where a missing scene
+ * is a failure (test_scene_or_skip exits accordingly). */
+static inline const char *test_scene_or_exit(const char *name, char *buf, size_t len)
+{
+#ifdef AS_SCENES_DIR
+    snprintf(buf, len, "%s/%s", AS_SCENES_DIR, name);
+#else
+    snprintf(buf, len, "../shared/scenes/%s", name);
+#endif
+    if (access(buf, R_OK) == 0) return buf;
+    const char *ci = getenv("CI");
+    if (ci && strcmp(ci, "true") == 0) {
+        fprintf(stderr, "FAIL: scene %s is missing and CI=true\n", buf);
+        exit(1);
+    }
+    fprintf(stderr, "SKIP: scene %s is absent (../shared/scenes not beside the checkout)\n", buf);
+    exit(TEST_SKIP);
+}
+
+#endif
