@@ -19,10 +19,12 @@
 #include <OpenMesh/Core/System/omstream.hh>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
+#include <iostream>
 #include <istream>
 #include <map>
 #include <mutex>
@@ -98,9 +100,15 @@ public:
     bool reserved = false;
     unsigned reserved_vertices = 0, reserved_faces = 0;
 
+    /* Thrown when a reader reports more than its input could hold: the
+     * readers trust the counts of damaged headers and would otherwise loop
+     * billions of times past the end. */
+    struct TooMany {};
+
     using BaseImporter::add_vertex;
     VertexHandle add_vertex(const Vec3f &p) override
     {
+        if (n_vertices() >= input_bytes_) throw TooMany();
         positions.insert(positions.end(), {p[0], p[1], p[2]});
         return VertexHandle(int(n_vertices() - 1));
     }
@@ -115,6 +123,7 @@ public:
     using BaseImporter::add_face;
     FaceHandle add_face(const VHandles &vs) override
     {
+        if (n_faces() >= input_bytes_ || corners.size() + vs.size() > input_bytes_) throw TooMany();
         for (const VertexHandle &v : vs) corners.push_back(v.idx());
         face_end.push_back(corners.size());
         return FaceHandle(int(face_end.size() - 1));
@@ -304,30 +313,50 @@ bool obj_scan(const char *data, size_t size, const char *name, ObjScan &scan)
 
 /* ------------------------------------------------------------------------ */
 
-/* OpenMesh's PLY header parser loops forever when "end_header" never comes
- * and indexes an empty element list when a property precedes every element;
- * such headers are refused here first. */
+/* OpenMesh's PLY header parser reads with operator>> and checks only
+ * badbit, so one unreadable number (a count, the version) or a missing
+ * "end_header" makes it loop forever, and a property before any element
+ * indexes an empty list. Headers are checked here first, line by line. */
 bool ply_header_sane(const char *data, size_t size)
 {
     size_t pos = 0, line = 0;
     bool element_seen = false;
+    std::vector<std::string> words;
     while (pos < size) {
         const char *nl = static_cast<const char *>(std::memchr(data + pos, '\n', size - pos));
         const size_t end = nl ? size_t(nl - data) : size;
-        size_t p = pos, q;
+        words.clear();
+        for (size_t p = pos; p < end;) {
+            while (p < end && is_blank(data[p])) ++p;
+            size_t q = p;
+            while (q < end && !is_blank(data[q])) ++q;
+            if (q > p) words.emplace_back(data + p, q - p);
+            p = q;
+        }
         pos = end + 1;
-        while (p < end && is_blank(data[p])) ++p;
-        for (q = p; q < end && !is_blank(data[q]);) ++q;
-        const std::string word(data + p, q - p);
         if (line++ == 0) {
-            if (word != "ply" && word != "PLY") return false;
-        } else if (word == "end_header") {
-            return true;
-        } else if (word == "element") {
+            if (words.size() != 1 || (words[0] != "ply" && words[0] != "PLY")) return false;
+            continue;
+        }
+        if (words.empty()) return false;
+        const std::string &w = words[0];
+        if (w == "end_header") return words.size() == 1;
+        if (w == "comment" || w == "obj_info") continue;
+        if (w == "format") {
+            char *after;
+            if (words.size() != 3) return false;
+            std::strtod(words[2].c_str(), &after);
+            if (*after != '\0' || after == words[2].c_str()) return false;
+        } else if (w == "element") {
+            char *after;
+            if (words.size() != 3 || !std::isdigit((unsigned char)words[2][0])) return false;
+            const unsigned long long n = std::strtoull(words[2].c_str(), &after, 10);
+            if (*after != '\0' || n > UINT32_MAX) return false;
             element_seen = true;
-        } else if (word == "property") {
+        } else if (w == "property") {
             if (!element_seen) return false;
-        } else if (word != "format" && word != "comment" && word != "obj_info") {
+            if (words.size() != (words.size() > 1 && words[1] == "list" ? 5u : 3u)) return false;
+        } else {
             return false;
         }
     }
@@ -366,7 +395,7 @@ class QuietOpenMesh {
 public:
     QuietOpenMesh()
         : err_(::omerr().is_enabled()), log_(::omlog().is_enabled()),
-          out_(::omout().is_enabled())
+          out_(::omout().is_enabled()), cerr_(std::cerr.rdbuf(&null_))
     {
         ::omerr().disable();
         ::omlog().disable();
@@ -377,10 +406,19 @@ public:
         if (err_) ::omerr().enable();
         if (log_) ::omlog().enable();
         if (out_) ::omout().enable();
+        std::cerr.rdbuf(cerr_);
     }
 
 private:
+    /* Swallows everything: a few PLY paths write to std::cerr directly. The
+     * swap is not synchronised with other threads writing to std::cerr; the
+     * library and its tools write to stderr only through stdio. */
+    struct NullBuf : std::streambuf {
+        int overflow(int c) override { return traits_type::not_eof(c); }
+    };
     bool err_, log_, out_;
+    NullBuf null_;
+    std::streambuf *cerr_;
 };
 
 const char *upper(const std::string &format)
@@ -446,7 +484,7 @@ as_error_t build_mesh(const Recorder &rec, const std::vector<Index> &corners,
         (uvs && !mesh->uvs) || (face_material && !mesh->material_ids))
         return AS_ERROR_OUT_OF_MEMORY;
 
-    std::memcpy(mesh->positions, rec.positions.data(), nv * 3 * sizeof(float));
+    if (nv) std::memcpy(mesh->positions, rec.positions.data(), nv * 3 * sizeof(float));
     if (normals) std::memcpy(mesh->normals, rec.normals.data(), nv * 3 * sizeof(float));
     if (uvs) std::memcpy(mesh->uvs, rec.uvs.data(), nv * 2 * sizeof(float));
     /* A face of k corners becomes the fan (c0, ci, ci+1), i = 1 .. k-2, so
@@ -466,12 +504,8 @@ as_error_t build_mesh(const Recorder &rec, const std::vector<Index> &corners,
     return AS_OK;
 }
 
-as_error_t read_obj(Recorder &rec, const void *data, size_t size, const char *name,
-                    as_mesh_t *mesh)
+as_error_t read_obj(const Recorder &rec, const ObjScan &scan, const char *name, as_mesh_t *mesh)
 {
-    ObjScan scan;
-    if (!obj_scan(static_cast<const char *>(data), size, name, scan)) return as_get_error();
-
     if (rec.n_vertices() != scan.vertex_lines) {
         if (scan.bad_vertex && !scan.bad_vertex_unreadable)
             return as_set_error(AS_ERROR_INVALID_MESH,
@@ -535,7 +569,12 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
                          const char *name, const char *file_path, as_mesh_t *mesh)
 {
     Recorder rec(size);
-    bool ok;
+    /* Before OpenMesh: its OBJ reader asserts on a face corner without a
+     * vertex index ("f /1/1 ..."), which the scan refuses. */
+    ObjScan scan;
+    if (format == "obj" && !obj_scan(static_cast<const char *>(data), size, name, scan))
+        return as_get_error();
+    bool ok = false;
     bool stream_failed;
     {
         std::lock_guard<std::mutex> lock(openmesh_mutex);
@@ -545,6 +584,7 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
         /* What we ask for; each reader answers with what the file has. */
         OpenMesh::IO::Options opt = OpenMesh::IO::Options::VertexNormal |
                                     OpenMesh::IO::Options::VertexTexCoord;
+        try {
         if (format == "obj") {
             ok = OpenMesh::IO::OBJReader().read(in, rec, opt);
         } else if (format == "ply") {
@@ -554,11 +594,14 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
             ok = off_prepare_header(static_cast<const char *>(data), size, file_path) &&
                  OpenMesh::IO::OFFReader().read(in, rec, opt);
         }
+        } catch (const Recorder::TooMany &) {
+            ok = false;
+        }
         stream_failed = in.fail();
     }
     const char *fmt = upper(format);
     if (!ok) return as_set_error(AS_ERROR_PARSE, "%s: cannot parse as %s", name, fmt);
-    if (format == "obj") return read_obj(rec, data, size, name, mesh);
+    if (format == "obj") return read_obj(rec, scan, name, mesh);
 
     /* The PLY and OFF readers stop early or read zeros past a damaged or
      * truncated body and still report success: the header's counts and the

@@ -1,0 +1,199 @@
+/* What the BVH builder promises: byte-identical files whatever the thread
+ * count, a valid tree within the depth cap, cancellation, and sane
+ * behaviour on tiny and degenerate inputs. */
+#include "reference.h"
+#include "test_util.h"
+
+#include <stdio.h>
+
+static int read_file(const char *path, unsigned char **data, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return 0;
+    fseek(f, 0, SEEK_END);
+    *size = (size_t)ftell(f);
+    fseek(f, 0, SEEK_SET);
+    *data = malloc(*size ? *size : 1);
+    const int ok = fread(*data, 1, *size, f) == *size;
+    fclose(f);
+    return ok;
+}
+
+static char tmpdir[256];
+
+static void save_with_threads(const as_mesh_t *m, unsigned threads, const char *path)
+{
+    as_build_args_t args;
+    as_build_args_default(&args);
+    args.thread_count = threads;
+    as_structure_t *s = as_structure_build(m, &args);
+    CHECK(s != NULL);
+    CHECK_EQ_INT(as_structure_save(s, path, NULL), AS_OK);
+    as_structure_release(s);
+}
+
+static void build_is_byte_identical_whatever_the_thread_count(void)
+{
+    as_mesh_t *meshes[2];
+    meshes[0] = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
+    CHECK(meshes[0] != NULL);
+    /* A soup large enough that subtrees are built on several threads. */
+    uint64_t st = 7;
+    const uint32_t n = 200000;
+    float *p = malloc(sizeof(float) * 9 * n);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
+    for (uint32_t i = 0; i < 9 * n; ++i) p[i] = (float)ref_rand01(&st);
+    for (uint32_t i = 0; i < 3 * n; ++i) ix[i] = i;
+    meshes[1] = as_mesh_create(3 * n, p, n, ix);
+    free(p);
+    free(ix);
+    CHECK(meshes[1] != NULL);
+    const unsigned threads[] = {1, 2, 3, 8};
+    for (int k = 0; k < 2; ++k) {
+        if (!meshes[k]) continue;
+        unsigned char *first = NULL, *data = NULL;
+        size_t first_size = 0;
+        for (size_t t = 0; t < sizeof threads / sizeof threads[0]; ++t) {
+            char path[512];
+            snprintf(path, sizeof path, "%s/mesh%d_threads%u.asf", tmpdir, k, threads[t]);
+            save_with_threads(meshes[k], threads[t], path);
+            size_t size = 0;
+            CHECK(read_file(path, &data, &size));
+            if (!first) { first = data; first_size = size; continue; }
+            CHECK_EQ_U64(size, first_size);
+            CHECK(size == first_size && memcmp(data, first, size) == 0);
+            free(data);
+            unlink(path);
+        }
+        free(first);
+        as_mesh_release(meshes[k]);
+    }
+}
+
+static as_mesh_t *copies_of_one_triangle(uint32_t copies)
+{
+    float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * copies);
+    for (uint32_t i = 0; i < copies; ++i) { ix[3 * i] = 0; ix[3 * i + 1] = 1; ix[3 * i + 2] = 2; }
+    as_mesh_t *m = as_mesh_create(3, p, copies, ix);
+    free(ix);
+    return m;
+}
+
+static void duplicates_stay_within_the_depth_cap_and_hit_the_lowest_index(void)
+{
+    const uint32_t counts[] = {2, 10, 1000, 10000};
+    for (size_t k = 0; k < sizeof counts / sizeof counts[0]; ++k) {
+        as_mesh_t *m = copies_of_one_triangle(counts[k]);
+        as_structure_t *s = as_structure_build(m, NULL);
+        CHECK(s != NULL);
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+        as_structure_stats_t st;
+        CHECK_EQ_INT(as_structure_get_stats(s, &st), AS_OK);
+        CHECK(st.max_depth <= 64);
+        CHECK(st.node_count <= counts[k]); /* linear in N */
+        const as_ray_t ray = {{0.25f, 0.25f, 1.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+        as_hit_t hit;
+        as_trace_args_t ta;
+        as_trace_args_default(&ta);
+        ta.device = AS_DEVICE_CPU;
+        CHECK_EQ_INT(as_trace(s, &ray, 1, &hit, &ta, NULL), AS_OK);
+        CHECK_EQ_U64(hit.prim, 0);
+        CHECK(hit.t == 1.0f);
+        as_structure_release(s);
+        as_mesh_release(m);
+    }
+}
+
+static void a_single_triangle_and_an_all_degenerate_mesh_build_and_trace(void)
+{
+    const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const uint32_t one[3] = {0, 1, 2}, degenerate[6] = {0, 0, 1, 0, 1, 1};
+    as_mesh_t *m1 = as_mesh_create(3, p, 1, one), *m2 = as_mesh_create(3, p, 2, degenerate);
+    CHECK(m1 && m2);
+    as_structure_t *s1 = as_structure_build(m1, NULL), *s2 = as_structure_build(m2, NULL);
+    CHECK(s1 && s2);
+    CHECK_EQ_INT(as_structure_validate(s1), AS_OK);
+    CHECK_EQ_INT(as_structure_validate(s2), AS_OK);
+    const as_ray_t ray = {{0.2f, 0.2f, -1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY};
+    as_hit_t h1, h2;
+    as_trace_args_t ta;
+    as_trace_args_default(&ta);
+    ta.device = AS_DEVICE_CPU;
+    CHECK_EQ_INT(as_trace(s1, &ray, 1, &h1, &ta, NULL), AS_OK);
+    CHECK_EQ_INT(as_trace(s2, &ray, 1, &h2, &ta, NULL), AS_OK);
+    CHECK_EQ_U64(h1.prim, 0);
+    CHECK(h1.t == 1.0f && fabsf(h1.u - 0.2f) < 1e-6f && fabsf(h1.v - 0.2f) < 1e-6f);
+    CHECK_EQ_U64(h2.prim, AS_NO_HIT);
+    CHECK(isinf(h2.t));
+    as_structure_release(s1);
+    as_structure_release(s2);
+    as_mesh_release(m1);
+    as_mesh_release(m2);
+}
+
+static bool cancel_at_half(void *user, double fraction)
+{
+    int *calls = user;
+    ++*calls;
+    return fraction < 0.5;
+}
+
+static void progress_callback_returning_false_cancels_the_build(void)
+{
+    as_mesh_t *m = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
+    CHECK(m != NULL);
+    as_build_args_t args;
+    as_build_args_default(&args);
+    int calls = 0;
+    args.progress = cancel_at_half;
+    args.progress_user = &calls;
+    as_clear_error();
+    as_structure_t *s = as_structure_build(m, &args);
+    CHECK(s == NULL);
+    CHECK_EQ_INT(as_get_error(), AS_ERROR_CANCELLED);
+    CHECK(calls > 1);
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
+static void bad_rays_report_a_miss(void)
+{
+    as_mesh_t *m = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
+    as_structure_t *s = as_structure_build(m, NULL);
+    CHECK(s != NULL);
+    const float nan = NAN, inf = INFINITY;
+    const as_ray_t rays[] = {
+        {{0, 0.1f, 1}, 1.0f, {0, 0, -1}, 0.5f},  /* tmin > tmax */
+        {{0, 0.1f, 1}, 0.0f, {0, 0, 0}, inf},     /* zero direction */
+        {{nan, 0.1f, 1}, 0.0f, {0, 0, -1}, inf},  /* NaN origin */
+        {{0, 0.1f, 1}, 0.0f, {0, nan, -1}, inf},  /* NaN direction */
+        {{0, 0.1f, inf}, 0.0f, {0, 0, -1}, inf},  /* infinite origin */
+        {{0, 0.1f, 1}, nan, {0, 0, -1}, inf},     /* NaN tmin */
+    };
+    const size_t n = sizeof rays / sizeof rays[0];
+    as_hit_t hits[sizeof rays / sizeof rays[0]];
+    as_trace_args_t ta;
+    as_trace_args_default(&ta);
+    ta.device = AS_DEVICE_CPU;
+    CHECK_EQ_INT(as_trace(s, rays, n, hits, &ta, NULL), AS_OK);
+    for (size_t i = 0; i < n; ++i) {
+        CHECK_EQ_U64(hits[i].prim, AS_NO_HIT);
+        CHECK(isinf(hits[i].t) && hits[i].t > 0);
+    }
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
+int main(void)
+{
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/as_test_bvh_XXXXXX");
+    if (!mkdtemp(tmpdir)) return 1;
+    RUN_TEST(build_is_byte_identical_whatever_the_thread_count);
+    RUN_TEST(duplicates_stay_within_the_depth_cap_and_hit_the_lowest_index);
+    RUN_TEST(a_single_triangle_and_an_all_degenerate_mesh_build_and_trace);
+    RUN_TEST(progress_callback_returning_false_cancels_the_build);
+    RUN_TEST(bad_rays_report_a_miss);
+    rmdir(tmpdir);
+    TEST_EXIT();
+}
