@@ -9,6 +9,7 @@
 #define AS_TEST_REFERENCE_H
 
 #include "as/as.h"
+#include "mesh.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -29,16 +30,6 @@ typedef struct ref_hit {
     uint32_t prim;
 } ref_hit;
 
-static inline int ref_triangle_zero_area(const float *a, const float *b, const float *c)
-{
-    /* Exact test: the cross product of float edges computed in double is
-     * exact enough to be zero only for truly collinear float vertices. */
-    const double e1[3] = {(double)b[0] - a[0], (double)b[1] - a[1], (double)b[2] - a[2]};
-    const double e2[3] = {(double)c[0] - a[0], (double)c[1] - a[1], (double)c[2] - a[2]};
-    const double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-    return n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0;
-}
-
 static inline int ref_scene_init(ref_scene *s, const as_mesh_t *mesh)
 {
     as_mesh_info_t info;
@@ -52,8 +43,8 @@ static inline int ref_scene_init(ref_scene *s, const as_mesh_t *mesh)
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         for (int k = 0; k < 3; ++k)
             for (int a = 0; a < 3; ++a) s->v[9 * (size_t)t + 3 * k + a] = p[3 * (size_t)ix[3 * (size_t)t + k] + a];
-        s->skip[t] = (uint8_t)ref_triangle_zero_area(p + 3 * (size_t)ix[3 * (size_t)t], p + 3 * (size_t)ix[3 * (size_t)t + 1],
-                                                     p + 3 * (size_t)ix[3 * (size_t)t + 2]);
+        /* The library's own definition of zero area: those are never hit. */
+        s->skip[t] = (uint8_t)as_mesh_triangle_is_degenerate(mesh, t);
     }
     const double dx = (double)info.bounds_hi[0] - info.bounds_lo[0], dy = (double)info.bounds_hi[1] - info.bounds_lo[1],
                  dz = (double)info.bounds_hi[2] - info.bounds_lo[2];

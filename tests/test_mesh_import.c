@@ -248,6 +248,13 @@ static void import_refuses_garbage_ply_header(void)
     check_refused("garbage.ply", AS_ERROR_PARSE, "cannot parse as PLY");
 }
 
+/* OpenMesh's readers would loop for hours or forever on these. */
+static void import_refuses_unreadable_header_count_and_glued_corners(void)
+{
+    check_refused("bad_element_count.ply", AS_ERROR_PARSE, "cannot parse as PLY");
+    check_refused("glued_corners.off", AS_ERROR_PARSE, "cannot parse as OFF");
+}
+
 static void import_refuses_truncated_binary_ply(void)
 {
     check_refused("truncated_binary.ply", AS_ERROR_PARSE, "cannot parse as PLY");
@@ -573,6 +580,7 @@ int main(int argc, char **argv)
     RUN_TEST(import_refuses_face_with_two_corners);
     RUN_TEST(import_refuses_file_without_triangles);
     RUN_TEST(import_refuses_garbage_ply_header);
+    RUN_TEST(import_refuses_unreadable_header_count_and_glued_corners);
     RUN_TEST(import_refuses_truncated_binary_ply);
     RUN_TEST(import_refuses_damaged_zstd_frame);
     RUN_TEST(import_refuses_truncated_zstd_frame);

@@ -43,6 +43,18 @@ static const char *checksum_word(int status)
     return status > 0 ? "verified" : status < 0 ? "mismatch" : "not checked";
 }
 
+/* A JSON string: quotes, backslashes and control characters escaped. */
+static void print_json_string(const char *s)
+{
+    putchar('"');
+    for (const unsigned char *p = (const unsigned char *)s; *p; ++p) {
+        if (*p == '"' || *p == '\\') printf("\\%c", *p);
+        else if (*p < 0x20) printf("\\u%04x", *p);
+        else putchar(*p);
+    }
+    putchar('"');
+}
+
 static void print_histogram_json(const char *name, const uint64_t *h)
 {
     int last = -1;
@@ -112,7 +124,9 @@ int main(int argc, char **argv)
     const uint32_t nsec = as_structure_section_count(s);
     const double bpt = st.triangle_count ? (double)st.structure_bytes / st.triangle_count : 0.0;
     if (json) {
-        printf("{\n  \"file\": \"%s\",\n  \"sections\": [\n", path);
+        printf("{\n  \"file\": ");
+        print_json_string(path);
+        printf(",\n  \"sections\": [\n");
         for (uint32_t i = 0; i < nsec; ++i) {
             as_section_info_t si;
             as_structure_section_info(s, i, &si);
@@ -128,7 +142,9 @@ int main(int argc, char **argv)
         printf("  ],\n");
         printf("  \"structure\": \"%s\",\n  \"layout\": \"%s\",\n  \"layout_version\": %u,\n", kind_name(st.structure),
                layout_name(st.layout), st.layout_version);
-        printf("  \"writer\": \"%s\",\n  \"writer_version\": %u,\n", st.writer, st.writer_version);
+        printf("  \"writer\": ");
+        print_json_string(st.writer);
+        printf(",\n  \"writer_version\": %u,\n", st.writer_version);
         printf("  \"build\": {\"builder\": \"%s\", \"max_leaf_size\": %u, \"bins\": %u, \"cost_traversal\": %g, "
                "\"cost_intersection\": %g, \"build_ms\": %.3f},\n",
                builder_name(st.builder), st.max_leaf_size, st.bin_count, (double)st.cost_traversal,

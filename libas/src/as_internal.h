@@ -9,6 +9,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 #if defined(__GNUC__)
 #define AS_PRINTF(f, a) __attribute__((format(printf, f, a)))
 #else
@@ -52,5 +56,9 @@ void as_parallel_for(unsigned threads, size_t count, as_parallel_fn fn, void *us
 /* XXH3-64 of a byte range. */
 uint64_t as_hash64(const void *data, size_t bytes);
 uint64_t as_hash64_seeded(const void *data, size_t bytes, uint64_t seed);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

@@ -301,7 +301,7 @@ static int32_t emit_leaf(flatten_state *st, const tmp_node *t)
         o->v1 = (as_f4_t){bb[0], bb[1], bb[2], 0.0f};
         o->v2 = (as_f4_t){c[0], c[1], c[2], 0.0f};
     }
-    st->leaf_count++;
+    if (t->count) st->leaf_count++; /* the empty sibling of a one-leaf tree is no leaf */
     return ~(int32_t)start;
 }
 
@@ -324,7 +324,7 @@ static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32
             o->child[k] = (int32_t)slot[k];
             o->count[k] = 0;
         } else {
-            if (depth + 1 > st->max_depth) st->max_depth = depth + 1;
+            if (c->count && depth + 1 > st->max_depth) st->max_depth = depth + 1;
             o->child[k] = emit_leaf(st, c);
             o->count[k] = c->count;
             if (c->count == 0) {

@@ -5,6 +5,10 @@
 
 #include "as/as.h"
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 struct as_mesh {
     uint32_t vertex_count;
     uint32_t triangle_count;
@@ -28,5 +32,9 @@ as_error_t as_mesh_finish(as_mesh_t *mesh, const char *name);
 /* Whether triangle i has zero area (exactly, in float): such triangles are
  * kept but never hit. */
 int as_mesh_triangle_is_degenerate(const as_mesh_t *mesh, uint32_t i);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif

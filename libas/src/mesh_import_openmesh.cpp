@@ -313,54 +313,126 @@ bool obj_scan(const char *data, size_t size, const char *name, ObjScan &scan)
 
 /* ------------------------------------------------------------------------ */
 
+/* Lines and blank-separated words of a text in memory. */
+class LineWords {
+public:
+    LineWords(const char *data, size_t size) : data_(data), size_(size) {}
+    /* The next line's words; false at the end. */
+    bool next(std::vector<std::string> &words)
+    {
+        if (pos_ >= size_) return false;
+        const char *nl = static_cast<const char *>(std::memchr(data_ + pos_, '\n', size_ - pos_));
+        const size_t end = nl ? size_t(nl - data_) : size_;
+        words.clear();
+        for (size_t p = pos_; p < end;) {
+            while (p < end && is_blank(data_[p])) ++p;
+            size_t q = p;
+            while (q < end && !is_blank(data_[q])) ++q;
+            if (q > p) words.emplace_back(data_ + p, q - p);
+            p = q;
+        }
+        pos_ = end + 1;
+        return true;
+    }
+    /* The next line that has words. */
+    bool next_nonblank(std::vector<std::string> &words)
+    {
+        while (next(words))
+            if (!words.empty()) return true;
+        return false;
+    }
+
+private:
+    const char *data_;
+    size_t size_, pos_ = 0;
+};
+
+bool parse_count(const std::string &w, unsigned long long &n)
+{
+    char *after;
+    if (w.empty() || !std::isdigit((unsigned char)w[0])) return false;
+    n = std::strtoull(w.c_str(), &after, 10);
+    return *after == '\0';
+}
+
+/* A face line of a text OFF or PLY file must hold the corners its count
+ * announces, each a plain number. OpenMesh's readers trust the count ("-3"
+ * reads as 4294967293, and "2-3" as 2 then -3) and would push that many
+ * corners past a failed stream. */
+bool face_line_sane(const std::vector<std::string> &words, size_t count_at)
+{
+    unsigned long long k, v;
+    if (words.size() <= count_at || !parse_count(words[count_at], k)) return false;
+    if (k > words.size() - count_at - 1) return false;
+    for (size_t i = count_at + 1; i <= count_at + k; ++i)
+        if (!parse_count(words[i], v)) return false;
+    return true;
+}
+
 /* OpenMesh's PLY header parser reads with operator>> and checks only
  * badbit, so one unreadable number (a count, the version) or a missing
  * "end_header" makes it loop forever, and a property before any element
- * indexes an empty list. Headers are checked here first, line by line. */
-bool ply_header_sane(const char *data, size_t size)
+ * indexes an empty list. Headers are checked here first, line by line, and
+ * so are the face lines of ASCII files. */
+bool ply_sane(const char *data, size_t size)
 {
-    size_t pos = 0, line = 0;
-    bool element_seen = false;
+    struct Element {
+        std::string name;
+        unsigned long long count;
+        long count_at; /* words before the face's corner count; -1: unknown */
+        bool list_seen;
+    };
+    std::vector<Element> elements;
     std::vector<std::string> words;
-    while (pos < size) {
-        const char *nl = static_cast<const char *>(std::memchr(data + pos, '\n', size - pos));
-        const size_t end = nl ? size_t(nl - data) : size;
-        words.clear();
-        for (size_t p = pos; p < end;) {
-            while (p < end && is_blank(data[p])) ++p;
-            size_t q = p;
-            while (q < end && !is_blank(data[q])) ++q;
-            if (q > p) words.emplace_back(data + p, q - p);
-            p = q;
-        }
-        pos = end + 1;
-        if (line++ == 0) {
-            if (words.size() != 1 || (words[0] != "ply" && words[0] != "PLY")) return false;
-            continue;
-        }
-        if (words.empty()) return false;
+    LineWords lines(data, size);
+    bool ascii = false;
+    if (!lines.next(words) || words.size() != 1 || (words[0] != "ply" && words[0] != "PLY"))
+        return false;
+    long scalars = 0;
+    for (;;) {
+        if (!lines.next(words) || words.empty()) return false;
         const std::string &w = words[0];
-        if (w == "end_header") return words.size() == 1;
+        if (w == "end_header") {
+            if (words.size() != 1) return false;
+            break;
+        }
         if (w == "comment" || w == "obj_info") continue;
         if (w == "format") {
             char *after;
             if (words.size() != 3) return false;
             std::strtod(words[2].c_str(), &after);
             if (*after != '\0' || after == words[2].c_str()) return false;
+            ascii = words[1] == "ascii";
         } else if (w == "element") {
-            char *after;
-            if (words.size() != 3 || !std::isdigit((unsigned char)words[2][0])) return false;
-            const unsigned long long n = std::strtoull(words[2].c_str(), &after, 10);
-            if (*after != '\0' || n > UINT32_MAX) return false;
-            element_seen = true;
+            unsigned long long n;
+            if (words.size() != 3 || !parse_count(words[2], n) || n > UINT32_MAX) return false;
+            elements.push_back({words[1], n, -1, false});
+            scalars = 0;
         } else if (w == "property") {
-            if (!element_seen) return false;
-            if (words.size() != (words.size() > 1 && words[1] == "list" ? 5u : 3u)) return false;
+            if (elements.empty()) return false;
+            Element &e = elements.back();
+            const bool list = words.size() > 1 && words[1] == "list";
+            if (words.size() != (list ? 5u : 3u)) return false;
+            const std::string &prop = words.back();
+            if (list && (prop == "vertex_indices" || prop == "vertex_index") && !e.list_seen)
+                e.count_at = scalars;
+            if (list) e.list_seen = true;
+            else ++scalars;
         } else {
             return false;
         }
     }
-    return false;
+    if (!ascii) return true;
+    /* One element per line, as OpenMesh reads them; it stops after faces. */
+    for (const Element &e : elements) {
+        for (unsigned long long i = 0; i < e.count; ++i) {
+            if (!lines.next_nonblank(words)) return true; /* truncation: the reader says */
+            if (e.name == "face" && e.count_at >= 0 && !face_line_sane(words, size_t(e.count_at)))
+                return false;
+        }
+        if (e.name == "face") break;
+    }
+    return true;
 }
 
 /* OpenMesh's OFF reader takes the header's flags (normals, colours, texture
@@ -369,6 +441,26 @@ bool ply_header_sane(const char *data, size_t size)
  * the header is shown to it through a file: the source file itself, or, for
  * decompressed data, a temporary file holding only the first line (all that
  * it reads). Returns false when the header is not OFF. */
+bool off_faces_sane(const char *data, size_t size)
+{
+    std::vector<std::string> words;
+    LineWords lines(data, size);
+    if (!lines.next(words)) return false;
+    for (const std::string &w : words)
+        if (w.find("BINARY") != std::string::npos) return true;
+    unsigned long long nv, nf;
+    if (!lines.next_nonblank(words) || words.size() < 2 || !parse_count(words[0], nv) ||
+        !parse_count(words[1], nf))
+        return true; /* the reader reports it */
+    for (unsigned long long i = 0; i < nv; ++i)
+        if (!lines.next_nonblank(words)) return true;
+    for (unsigned long long i = 0; i < nf; ++i) {
+        if (!lines.next_nonblank(words)) return true;
+        if (!face_line_sane(words, 0)) return false;
+    }
+    return true;
+}
+
 bool off_prepare_header(const char *data, size_t size, const char *file_path)
 {
     if (file_path) return OpenMesh::IO::OFFReader().can_u_read(std::string(file_path));
@@ -588,10 +680,11 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
         if (format == "obj") {
             ok = OpenMesh::IO::OBJReader().read(in, rec, opt);
         } else if (format == "ply") {
-            ok = ply_header_sane(static_cast<const char *>(data), size) &&
+            ok = ply_sane(static_cast<const char *>(data), size) &&
                  OpenMesh::IO::PLYReader().read(in, rec, opt);
         } else {
-            ok = off_prepare_header(static_cast<const char *>(data), size, file_path) &&
+            ok = off_faces_sane(static_cast<const char *>(data), size) &&
+                 off_prepare_header(static_cast<const char *>(data), size, file_path) &&
                  OpenMesh::IO::OFFReader().read(in, rec, opt);
         }
         } catch (const Recorder::TooMany &) {

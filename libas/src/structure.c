@@ -1,15 +1,12 @@
 /* Structures: building (dispatch to one builder per kind), saving to and
  * loading from .asf files, statistics and section listing. */
 #include "structure.h"
-#include "bvh2_layout.h"
 #include "mesh.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-static const uint32_t known_tags[] = {ASF_TAG_META, ASF_TAG_BVH2, ASF_TAG_TRI4};
 
 void *as_aligned_alloc(size_t bytes, const char *what)
 {
@@ -134,6 +131,33 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
     return asf_write(path, desc, n);
 }
 
+static const as_layout_ops_t *const layouts[] = {
+    &as_layout_bvh2_child_bounds,
+};
+
+const as_layout_ops_t *as_layout_find(uint32_t structure_kind, uint32_t layout)
+{
+    for (size_t i = 0; i < sizeof layouts / sizeof layouts[0]; ++i)
+        if (layouts[i]->structure_kind == structure_kind && layouts[i]->layout == layout) return layouts[i];
+    return NULL;
+}
+
+const as_layout_ops_t *as_structure_ops(const as_structure_t *s)
+{
+    return as_layout_find(s->meta.structure_kind, s->meta.layout);
+}
+
+/* Every section tag some layout of this build reads: the container refuses
+ * unknown required sections and skips unknown optional ones. */
+static uint32_t known_tags(uint32_t *tags, uint32_t capacity)
+{
+    uint32_t n = 0;
+    tags[n++] = ASF_TAG_META;
+    for (size_t i = 0; i < sizeof layouts / sizeof layouts[0]; ++i)
+        for (uint32_t k = 0; k < layouts[i]->section_count && n < capacity; ++k) tags[n++] = layouts[i]->sections[k].tag;
+    return n;
+}
+
 /* Checks that the sections a kind needs are there with the right strides,
  * and takes them from the file. */
 static as_error_t adopt_sections(as_structure_t *s, const char *name)
@@ -153,26 +177,33 @@ static as_error_t adopt_sections(as_structure_t *s, const char *name)
                             (unsigned long long)me->offset);
     if (memchr(s->meta.writer, '\0', sizeof s->meta.writer) == NULL)
         return as_set_error(AS_ERROR_CORRUPT, "%s: META writer name is not NUL-terminated", name);
-    if (s->meta.structure_kind != AS_STRUCT_BVH)
-        return as_set_error(AS_ERROR_UNSUPPORTED, "%s: structure kind 0x%04x cannot be traced by this build (libas %s)",
-                            name, s->meta.structure_kind, AS_VERSION_STRING);
-    if (s->meta.layout != AS_LAYOUT_BVH2_CHILD_BOUNDS)
-        return as_set_error(AS_ERROR_UNSUPPORTED, "%s: layout 0x%04x cannot be traced by this build (libas %s)",
-                            name, s->meta.layout, AS_VERSION_STRING);
-    if (s->meta.layout_version > AS_BVH2_LAYOUT_VERSION)
-        return as_set_error(AS_ERROR_VERSION, "%s: layout version %u is newer than this build reads (%d)", name,
-                            s->meta.layout_version, AS_BVH2_LAYOUT_VERSION);
-    const struct { uint32_t tag; uint32_t stride; const char *what; } need[] = {
-        {ASF_TAG_BVH2, sizeof(as_bvh2_node_t), "BVH2"},
-        {ASF_TAG_TRI4, sizeof(as_tri4_t), "TRI4"},
-    };
-    for (size_t k = 0; k < sizeof need / sizeof need[0]; ++k) {
-        const int i = asf_find_section(f, need[k].tag);
-        if (i < 0) return as_set_error(AS_ERROR_CORRUPT, "%s: the BVH needs a %s section and the file has none", name, need[k].what);
+    const as_layout_ops_t *ops = as_layout_find(s->meta.structure_kind, s->meta.layout);
+    if (!ops) {
+        int kind_known = 0;
+        for (size_t i = 0; i < sizeof layouts / sizeof layouts[0]; ++i)
+            kind_known |= layouts[i]->structure_kind == s->meta.structure_kind;
+        if (!kind_known)
+            return as_set_error(AS_ERROR_UNSUPPORTED, "%s: structure kind 0x%04x cannot be traced by this build (libas %s)",
+                                name, s->meta.structure_kind, AS_VERSION_STRING);
+        return as_set_error(AS_ERROR_UNSUPPORTED, "%s: layout 0x%04x cannot be traced by this build (structure kind 0x%04x, libas %s)",
+                            name, s->meta.layout, s->meta.structure_kind, AS_VERSION_STRING);
+    }
+    if (s->meta.layout_version > ops->layout_version)
+        return as_set_error(AS_ERROR_VERSION, "%s: %s layout version %u is newer than this build reads (%u)", name,
+                            ops->layout_name, s->meta.layout_version, ops->layout_version);
+    for (uint32_t k = 0; k < ops->section_count; ++k) {
+        const as_layout_section_t *need = &ops->sections[k];
+        char tag[5];
+        memcpy(tag, &need->tag, 4);
+        tag[4] = '\0';
+        const int i = asf_find_section(f, need->tag);
+        if (i < 0)
+            return as_set_error(AS_ERROR_CORRUPT, "%s: the %s layout needs a %s section and the file has none", name,
+                                ops->layout_name, tag);
         const asf_section_entry_t *e = asf_section_entry(f, (uint32_t)i);
-        if (e->stride != need[k].stride)
-            return as_set_error(AS_ERROR_CORRUPT, "%s: section %s (offset %llu) has stride %u, expected %u", name,
-                                need[k].what, (unsigned long long)e->offset, e->stride, need[k].stride);
+        if (e->stride != need->stride)
+            return as_set_error(AS_ERROR_CORRUPT, "%s: section %s (offset %llu) has stride %u, expected %u", name, tag,
+                                (unsigned long long)e->offset, e->stride, need->stride);
         as_section_t *sec = &s->sections[s->section_count++];
         memset(sec, 0, sizeof *sec);
         sec->tag = e->tag;
@@ -183,8 +214,6 @@ static as_error_t adopt_sections(as_structure_t *s, const char *name)
         sec->stride = e->stride;
         sec->file_index = i;
     }
-    if (as_structure_find(s, ASF_TAG_BVH2)->count == 0)
-        return as_set_error(AS_ERROR_CORRUPT, "%s: BVH2 section has no nodes (the root is node 0)", name);
     return AS_OK;
 }
 
@@ -206,7 +235,8 @@ as_structure_t *as_structure_load(const char *path, const as_load_args_t *user_a
     if (!path) { as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_load: path is NULL"); return NULL; }
     as_load_args_t args;
     AS_ARGS_FROM_CALLER(as_load_args_t, args, user_args, as_load_args_default);
-    const asf_open_args_t oa = {args.verify_checksums, known_tags, sizeof known_tags / sizeof known_tags[0]};
+    uint32_t tags[1 + AS_LAYOUT_MAX_SECTIONS * 8];
+    const asf_open_args_t oa = {args.verify_checksums, tags, known_tags(tags, sizeof tags / sizeof tags[0])};
     return finish_load(asf_open(path, &oa), path);
 }
 
@@ -216,69 +246,15 @@ as_structure_t *as_structure_load_memory(const void *data, size_t size, const ch
     if (!name) name = "(memory)";
     as_load_args_t args;
     AS_ARGS_FROM_CALLER(as_load_args_t, args, user_args, as_load_args_default);
-    const asf_open_args_t oa = {args.verify_checksums, known_tags, sizeof known_tags / sizeof known_tags[0]};
+    uint32_t tags[1 + AS_LAYOUT_MAX_SECTIONS * 8];
+    const asf_open_args_t oa = {args.verify_checksums, tags, known_tags(tags, sizeof tags / sizeof tags[0])};
     return finish_load(asf_open_memory(data, size, name, &oa), name);
 }
 
-static double half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
+as_error_t as_structure_validate(const as_structure_t *s)
 {
-    const double dx = (double)hix - lox, dy = (double)hiy - loy, dz = (double)hiz - loz;
-    if (!(dx >= 0 && dy >= 0 && dz >= 0)) return 0.0;
-    return dx * dy + dy * dz + dz * dx;
-}
-
-/* Walks the tree from the root with an explicit stack; the caller has
- * validated it, or built it. */
-typedef struct bvh2_walk {
-    double sah;
-    uint64_t depth_sum;
-    as_structure_stats_t *stats;
-} bvh2_walk;
-
-static void bvh2_walk_tree(const as_structure_t *s, bvh2_walk *w)
-{
-    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2);
-    const as_bvh2_node_t *nodes = ns->data;
-    const double ci = s->meta.cost_intersection, ct = s->meta.cost_traversal;
-    const double root_area = half_area6(s->meta.bounds_lo[0], s->meta.bounds_hi[0], s->meta.bounds_lo[1],
-                                        s->meta.bounds_hi[1], s->meta.bounds_lo[2], s->meta.bounds_hi[2]);
-    struct { int32_t node; uint32_t depth; double area; } stack[AS_BVH2_MAX_DEPTH + 2];
-    int sp = 0;
-    stack[sp].node = 0; stack[sp].depth = 0; stack[sp].area = root_area; ++sp;
-    while (sp > 0) {
-        --sp;
-        const int32_t ni = stack[sp].node;
-        const uint32_t depth = stack[sp].depth;
-        const double area = stack[sp].area;
-        const as_bvh2_node_t *n = &nodes[ni];
-        w->sah += ct * (root_area > 0 ? area / root_area : 1.0);
-        const double ca[2] = {half_area6(n->xy0.x, n->xy0.y, n->xy0.z, n->xy0.w, n->z01.x, n->z01.y),
-                              half_area6(n->xy1.x, n->xy1.y, n->xy1.z, n->xy1.w, n->z01.z, n->z01.w)};
-        for (int k = 0; k < 2; ++k) {
-            if (n->child[k] >= 0) {
-                if (sp >= AS_BVH2_MAX_DEPTH + 2) continue; /* validated trees never get here */
-                stack[sp].node = n->child[k]; stack[sp].depth = depth + 1; stack[sp].area = ca[k]; ++sp;
-            } else {
-                w->sah += ci * n->count[k] * (root_area > 0 ? ca[k] / root_area : 1.0);
-                if (w->stats) {
-                    as_structure_stats_t *st = w->stats;
-                    if (n->count[k] == 0) continue; /* the empty sibling of a one-leaf tree */
-                    st->leaf_count++;
-                    if (depth + 1 > st->max_depth) st->max_depth = depth + 1;
-                    w->depth_sum += depth + 1;
-                    st->depth_histogram[depth + 1 < AS_HISTOGRAM_BINS ? depth + 1 : AS_HISTOGRAM_BINS - 1]++;
-                    st->leaf_size_histogram[n->count[k] < AS_HISTOGRAM_BINS ? n->count[k] : AS_HISTOGRAM_BINS - 1]++;
-                }
-            }
-        }
-    }
-}
-
-double as_bvh2_sah_cost(const as_structure_t *s)
-{
-    bvh2_walk w = {0, 0, NULL};
-    bvh2_walk_tree(s, &w);
-    return w.sah;
+    if (!s) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_validate: NULL structure");
+    return as_structure_ops(s)->validate(s, s->file ? asf_name(s->file) : "(built structure)");
 }
 
 as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *st)
@@ -305,22 +281,17 @@ as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t 
     st->writer_version = s->meta.writer_version;
     st->structure_bytes = sizeof(as_meta_t);
     for (uint32_t i = 0; i < s->section_count; ++i) st->structure_bytes += s->sections[i].bytes;
-    st->node_count = as_structure_find(s, ASF_TAG_BVH2)->count;
-    bvh2_walk w = {0, 0, st};
-    bvh2_walk_tree(s, &w);
-    st->sah_cost = w.sah;
-    st->average_leaf_depth = st->leaf_count ? (double)w.depth_sum / (double)st->leaf_count : 0.0;
+    as_structure_ops(s)->stats(s, st);
     return AS_OK;
 }
 
-static const char *section_purpose(uint32_t tag)
+static const char *section_purpose(const as_structure_t *s, uint32_t tag)
 {
-    switch (tag) {
-    case ASF_TAG_META: return "writer, structure kind, layout and build parameters";
-    case ASF_TAG_BVH2: return "BVH nodes with both children's boxes, read by the traversal";
-    case ASF_TAG_TRI4: return "triangle vertices in leaf order with source indices, read by the traversal";
-    default: return "unknown to this version (optional, skipped)";
-    }
+    if (tag == ASF_TAG_META) return "writer, structure kind, layout and build parameters";
+    const as_layout_ops_t *ops = as_structure_ops(s);
+    for (uint32_t i = 0; i < ops->section_count; ++i)
+        if (ops->sections[i].tag == tag) return ops->sections[i].purpose;
+    return "unknown to this version (optional, skipped)";
 }
 
 uint32_t as_structure_section_count(const as_structure_t *s)
@@ -366,6 +337,6 @@ as_error_t as_structure_section_info(const as_structure_t *s, uint32_t index, as
     }
     memcpy(info->tag, &tag, 4);
     info->tag[4] = '\0';
-    info->purpose = section_purpose(tag);
+    info->purpose = section_purpose(s, tag);
     return AS_OK;
 }

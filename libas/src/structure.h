@@ -37,13 +37,53 @@ void as_structure_add_section(as_structure_t *s, uint32_t tag, void *data, uint6
 /* 64-byte aligned allocation for section data; free with free(). */
 void *as_aligned_alloc(size_t bytes, const char *what);
 
+/* What libas knows of one stored layout: its sections, and how to validate,
+ * describe and trace it. One table per layout, in the layout's own file
+ * (bvh2_ops.c, ...); adding a structure adds a table to as_layouts. */
+#define AS_LAYOUT_MAX_SECTIONS 6
+
+typedef struct as_layout_section {
+    uint32_t tag;
+    uint32_t stride;
+    const char *purpose;          /* why the section is there (as-inspect) */
+} as_layout_section_t;
+
+typedef struct as_layout_ops {
+    uint32_t structure_kind;      /* as_structure_kind_t */
+    uint32_t layout;              /* as_layout_t */
+    uint32_t layout_version;      /* the newest this build reads */
+    const char *kind_name;        /* "bvh" */
+    const char *layout_name;      /* "bvh2-child-bounds" */
+    uint32_t section_count;
+    as_layout_section_t sections[AS_LAYOUT_MAX_SECTIONS];
+    /* Structural checks before any traversal reads the sections. */
+    as_error_t (*validate)(const as_structure_t *s, const char *name);
+    /* Counts, depths, histograms, SAH cost; `s` has been validated. */
+    void (*stats)(const as_structure_t *s, as_structure_stats_t *st);
+    /* Traces rays [0, count) on the calling thread. */
+    void (*trace_cpu)(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count,
+                      int any_hit);
+    /* The CUDA back end, or NULL where this build has none. */
+    as_error_t (*trace_gpu)(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                            int any_hit, unsigned timed_runs, as_trace_timing_t *timing);
+} as_layout_ops_t;
+
+/* The table for a kind and layout, or NULL when this build has none. */
+const as_layout_ops_t *as_layout_find(uint32_t structure_kind, uint32_t layout);
+/* The table of a structure (never NULL for a built or loaded one). */
+const as_layout_ops_t *as_structure_ops(const as_structure_t *s);
+
+extern const as_layout_ops_t as_layout_bvh2_child_bounds;
+
 /* Builders: fill s->meta (kind, layout, parameters, counts) and sections. */
 as_error_t as_bvh_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
 
 /* SAH cost of a BVH2, from the stored layout. */
 double as_bvh2_sah_cost(const as_structure_t *s);
+as_error_t as_bvh2_validate(const as_structure_t *s, const char *name);
 
-/* CPU and GPU tracing back ends. */
-as_error_t as_trace_cpu(const as_structure_t *s, const as_ray_t *rays, size_t count,
-                        as_hit_t *hits, const as_trace_args_t *args, as_trace_timing_t *timing);
+/* The CPU back end: a layout's trace_cpu on every core. */
+as_error_t as_trace_cpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                        const as_trace_args_t *args, as_trace_timing_t *timing);
+
 #endif

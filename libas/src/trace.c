@@ -33,14 +33,10 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
     as_device_t device = args.device;
     if (device == AS_DEVICE_AUTO) device = as_gpu_available() ? AS_DEVICE_GPU : AS_DEVICE_CPU;
     if (device == AS_DEVICE_CPU) return as_trace_cpu(s, rays, count, hits, &args, timing);
-#ifdef AS_HAVE_CUDA
-    if (!as_gpu_available())
-        return as_set_error(AS_ERROR_NO_DEVICE, "no usable CUDA device (use the CPU back end)");
-    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
-    if (!ns || !ts) return as_set_error(AS_ERROR_UNSUPPORTED, "the structure has no BVH2/TRI4 sections to trace");
-    return as_trace_gpu_bvh2(ns->data, ns->bytes, ts->data, ts->bytes, rays, count, hits, args.any_hit,
-                             args.timed_runs ? args.timed_runs : 1, timing);
-#else
-    return as_set_error(AS_ERROR_NO_DEVICE, "this build of libas has no CUDA back end");
-#endif
+    const as_layout_ops_t *ops = as_structure_ops(s);
+    if (!ops->trace_gpu)
+        return as_set_error(AS_ERROR_NO_DEVICE, "this build of libas has no CUDA back end for the %s layout",
+                            ops->layout_name);
+    if (!as_gpu_available()) return as_set_error(AS_ERROR_NO_DEVICE, "no usable CUDA device (use the CPU back end)");
+    return ops->trace_gpu(s, rays, count, hits, args.any_hit, args.timed_runs ? args.timed_runs : 1, timing);
 }

@@ -91,6 +91,10 @@ need_scenes() {
 
 need_python() {
     if ! command -v python3 >/dev/null 2>&1; then
+        if [ "${CI:-}" = true ]; then
+            echo "FAIL - python3 is needed to write and patch binary files and CI=true"
+            exit 1
+        fi
         echo "skipped: python3 is needed to write and patch binary files"
         exit 77
     fi

@@ -1,6 +1,6 @@
-/* Structural validation: everything a traversal relies on, checked before a
- * traversal reads a file. A tree that passes can send no traversal out of
- * bounds, into a loop, or past its stack. */
+/* Structural validation of the BVH2 child-bounds layout: everything the
+ * traversal relies on, checked before it reads a file. A tree that passes
+ * can send no traversal out of bounds, into a loop, or past its stack. */
 #include "structure.h"
 #include "bvh2_layout.h"
 
@@ -25,7 +25,7 @@ static void child_box(const as_bvh2_node_t *n, int k, float b[6])
     else        { b[0] = n->xy1.x; b[1] = n->xy1.y; b[2] = n->xy1.z; b[3] = n->xy1.w; b[4] = n->z01.z; b[5] = n->z01.w; }
 }
 
-static as_error_t validate_bvh2(const as_structure_t *s, const char *name)
+as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
     if (!ns || !ts) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: BVH2 or TRI4 section missing", name);
@@ -63,7 +63,8 @@ static as_error_t validate_bvh2(const as_structure_t *s, const char *name)
     int sp = 0;
     stack[sp] = 0; depths[sp] = 0; ++sp;
     node_seen[0] = 1;
-    uint64_t reached = 1;
+    uint64_t reached = 1, leaves = 0;
+    uint32_t max_leaf_depth = 0;
     while (sp > 0 && err == AS_OK) {
         --sp;
         const int32_t ni = stack[sp];
@@ -101,6 +102,8 @@ static as_error_t validate_bvh2(const as_structure_t *s, const char *name)
             } else {
                 const uint64_t first = (uint64_t)(uint32_t)~c, count = n->count[k];
                 if (count == 0) continue; /* an empty child: never entered */
+                ++leaves;
+                if (depth + 1 > max_leaf_depth) max_leaf_depth = depth + 1;
                 if (first > tri_count || count > tri_count - first) {
                     err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: node %d child %d: leaf triangles [%llu, %llu) outside the %llu of TRI4", name, ni, k,
                                        (unsigned long long)first, (unsigned long long)(first + count), (unsigned long long)tri_count);
@@ -131,22 +134,21 @@ static as_error_t validate_bvh2(const as_structure_t *s, const char *name)
     if (err == AS_OK && reached != node_count)
         err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %llu of %llu nodes are not reachable from the root", name,
                            (unsigned long long)(node_count - reached), (unsigned long long)node_count);
+    /* META's counts describe the arrays; readers that size buffers from
+     * them (statistics, the study) must be able to trust them. */
+    if (err == AS_OK && s->meta.node_count != node_count)
+        err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says %llu nodes but BVH2 holds %llu", name,
+                           (unsigned long long)s->meta.node_count, (unsigned long long)node_count);
+    if (err == AS_OK && s->meta.leaf_count != leaves)
+        err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META leaf count is %llu but the tree has %llu leaves", name,
+                           (unsigned long long)s->meta.leaf_count, (unsigned long long)leaves);
+    if (err == AS_OK && s->meta.max_depth != max_leaf_depth)
+        err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says max depth %u but the deepest leaf is at %u", name,
+                           s->meta.max_depth, max_leaf_depth);
 done:
     free(node_seen);
     free(tri_seen);
     free(stack);
     free(depths);
     return err;
-}
-
-as_error_t as_structure_validate(const as_structure_t *s)
-{
-    if (!s) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_validate: NULL structure");
-    const char *name = s->file ? asf_name(s->file) : "(built structure)";
-    switch (s->meta.structure_kind) {
-    case AS_STRUCT_BVH: return validate_bvh2(s, name);
-    default:
-        return as_set_error(AS_ERROR_UNSUPPORTED, "%s: structure kind 0x%04x cannot be validated by this build", name,
-                            s->meta.structure_kind);
-    }
 }

@@ -1,0 +1,112 @@
+/* The BVH2 child-bounds layout: its sections, statistics, and the CPU and
+ * GPU traversals (both run kernels/bvh2_traverse.h). */
+#include "structure.h"
+#include "bvh2_traverse.h"
+#include "trace_gpu.h"
+
+#include <string.h>
+
+static double half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
+{
+    const double dx = (double)hix - lox, dy = (double)hiy - loy, dz = (double)hiz - loz;
+    if (!(dx >= 0 && dy >= 0 && dz >= 0)) return 0.0;
+    return dx * dy + dy * dz + dz * dx;
+}
+
+/* One walk for the SAH cost and the statistics; the tree is valid (built or
+ * validated), so the explicit stack never holds more than depth + 1. */
+static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2);
+    const as_bvh2_node_t *nodes = ns->data;
+    const double ci = s->meta.cost_intersection, ct = s->meta.cost_traversal;
+    const double root_area = half_area6(s->meta.bounds_lo[0], s->meta.bounds_hi[0], s->meta.bounds_lo[1],
+                                        s->meta.bounds_hi[1], s->meta.bounds_lo[2], s->meta.bounds_hi[2]);
+    struct { int32_t node; uint32_t depth; double area; } stack[AS_BVH2_MAX_DEPTH + 2];
+    int sp = 0;
+    double sah = 0.0;
+    uint64_t depth_sum = 0;
+    stack[sp].node = 0; stack[sp].depth = 0; stack[sp].area = root_area; ++sp;
+    while (sp > 0) {
+        --sp;
+        const int32_t ni = stack[sp].node;
+        const uint32_t depth = stack[sp].depth;
+        const as_bvh2_node_t *n = &nodes[ni];
+        sah += ct * (root_area > 0 ? stack[sp].area / root_area : 1.0);
+        const double ca[2] = {half_area6(n->xy0.x, n->xy0.y, n->xy0.z, n->xy0.w, n->z01.x, n->z01.y),
+                              half_area6(n->xy1.x, n->xy1.y, n->xy1.z, n->xy1.w, n->z01.z, n->z01.w)};
+        for (int k = 0; k < 2; ++k) {
+            if (n->child[k] >= 0) {
+                if (sp >= AS_BVH2_MAX_DEPTH + 2) continue;
+                stack[sp].node = n->child[k]; stack[sp].depth = depth + 1; stack[sp].area = ca[k]; ++sp;
+                continue;
+            }
+            sah += ci * n->count[k] * (root_area > 0 ? ca[k] / root_area : 1.0);
+            if (!st || n->count[k] == 0) continue; /* the empty sibling of a one-leaf tree */
+            st->leaf_count++;
+            if (depth + 1 > st->max_depth) st->max_depth = depth + 1;
+            depth_sum += depth + 1;
+            st->depth_histogram[depth + 1 < AS_HISTOGRAM_BINS ? depth + 1 : AS_HISTOGRAM_BINS - 1]++;
+            st->leaf_size_histogram[n->count[k] < AS_HISTOGRAM_BINS ? n->count[k] : AS_HISTOGRAM_BINS - 1]++;
+        }
+    }
+    if (st) st->average_leaf_depth = st->leaf_count ? (double)depth_sum / (double)st->leaf_count : 0.0;
+    return sah;
+}
+
+double as_bvh2_sah_cost(const as_structure_t *s) { return bvh2_walk(s, NULL); }
+
+static void bvh2_stats(const as_structure_t *s, as_structure_stats_t *st)
+{
+    st->node_count = as_structure_find(s, ASF_TAG_BVH2)->count;
+    st->sah_cost = bvh2_walk(s, st);
+}
+
+static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count, int any_hit)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
+    for (size_t i = 0; i < count; ++i) {
+        const as_ray_t *ray = &rays[i];
+        as_hit_rec_t h;
+        as_ray_pre_t pre;
+        /* A file loaded without validation may have no root at all. */
+        if (ns->count > 0 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, &pre))
+            as_bvh2_trace(ns->data, ts->data, &pre, any_hit, &h, NULL);
+        else
+            as_hit_rec_miss(&h);
+        hits[i].t = h.t;
+        hits[i].prim = h.prim;
+        hits[i].u = h.u;
+        hits[i].v = h.v;
+    }
+}
+
+#ifdef AS_HAVE_CUDA
+static as_error_t bvh2_trace_gpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                                 int any_hit, unsigned timed_runs, as_trace_timing_t *timing)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
+    if (ns->count == 0) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "BVH2 section has no root node");
+    return as_trace_gpu_bvh2(ns->data, ns->bytes, ts->data, ts->bytes, rays, count, hits, any_hit, timed_runs,
+                             timing);
+}
+#endif
+
+const as_layout_ops_t as_layout_bvh2_child_bounds = {
+    .structure_kind = AS_STRUCT_BVH,
+    .layout = AS_LAYOUT_BVH2_CHILD_BOUNDS,
+    .layout_version = AS_BVH2_LAYOUT_VERSION,
+    .kind_name = "bvh",
+    .layout_name = "bvh2-child-bounds",
+    .section_count = 2,
+    .sections = {
+        {ASF_TAG_BVH2, sizeof(as_bvh2_node_t), "BVH nodes with both children's boxes, read by the traversal"},
+        {ASF_TAG_TRI4, sizeof(as_tri4_t), "triangle vertices in leaf order with source indices, read by the traversal"},
+    },
+    .validate = as_bvh2_validate,
+    .stats = bvh2_stats,
+    .trace_cpu = bvh2_trace_cpu,
+#ifdef AS_HAVE_CUDA
+    .trace_gpu = bvh2_trace_gpu,
+#endif
+};

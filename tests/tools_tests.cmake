@@ -1,0 +1,22 @@
+# The four tools (tools/), run as a user would: shell scripts in tests/cli,
+# each named for what it checks, fixtures in tests/data/cli. Each script gets
+# the tools' directory, the source tree and the shared scenes directory.
+set(_as_cli_tests
+  tools_answer_help_version_and_usage_errors
+  build_rejects_bad_meshes
+  build_bunny_summary_and_atomic_replace
+  inspect_reports_same_facts_in_json_and_text
+  inspect_json_escapes_file_name
+  damaged_files_are_refused
+  validate_catches_damage_without_checksums
+  validate_checks_meta_counts_against_arrays
+  convert_compress_round_trip
+  trace_rays_file_gives_known_hits_and_image
+  other_scenes_build_inspect_trace)
+foreach(_t ${_as_cli_tests})
+  add_test(NAME cli_${_t}
+    COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/${_t}.sh $<TARGET_FILE_DIR:as-build>
+            ${PROJECT_SOURCE_DIR} ${AS_SCENES_DIR})
+  set_tests_properties(cli_${_t} PROPERTIES SKIP_RETURN_CODE 77 LABELS cli)
+endforeach()
+set_tests_properties(cli_other_scenes_build_inspect_trace PROPERTIES LABELS "cli;scenes")
