@@ -146,9 +146,9 @@ int main(int argc, char **argv)
         print_json_string(st.writer);
         printf(",\n  \"writer_version\": %u,\n", st.writer_version);
         printf("  \"build\": {\"builder\": \"%s\", \"max_leaf_size\": %u, \"bins\": %u, \"cost_traversal\": %g, "
-               "\"cost_intersection\": %g, \"build_ms\": %.3f},\n",
+               "\"cost_intersection\": %g},\n",
                builder_name(st.builder), st.max_leaf_size, st.bin_count, (double)st.cost_traversal,
-               (double)st.cost_intersection, st.build_ms);
+               (double)st.cost_intersection);
         printf("  \"source_hash\": \"%016llx\",\n", (unsigned long long)st.source_hash);
         printf("  \"bounds\": [[%g, %g, %g], [%g, %g, %g]],\n", (double)st.bounds_lo[0], (double)st.bounds_lo[1],
                (double)st.bounds_lo[2], (double)st.bounds_hi[0], (double)st.bounds_hi[1], (double)st.bounds_hi[2]);
@@ -182,8 +182,7 @@ int main(int argc, char **argv)
         printf("depth:       max %u, average leaf depth %.2f\n", st.max_depth, st.average_leaf_depth);
         printf("SAH cost:    %.3f (traversal %g, intersection %g)\n", st.sah_cost, (double)st.cost_traversal,
                (double)st.cost_intersection);
-        printf("build:       %s, leaf size %u, bins %u, %.1f ms\n", builder_name(st.builder), st.max_leaf_size,
-               st.bin_count, st.build_ms);
+        printf("build:       %s, leaf size %u, bins %u\n", builder_name(st.builder), st.max_leaf_size, st.bin_count);
         printf("source hash: %016llx\n", (unsigned long long)st.source_hash);
         printf("bounds:      (%g, %g, %g) - (%g, %g, %g)\n", (double)st.bounds_lo[0], (double)st.bounds_lo[1],
                (double)st.bounds_lo[2], (double)st.bounds_hi[0], (double)st.bounds_hi[1], (double)st.bounds_hi[2]);

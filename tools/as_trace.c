@@ -30,7 +30,7 @@ static void usage(void)
            "      --runs N               GPU: timed launches, median reported (default 5)\n"
            "      --threads N            CPU threads (default: every core)\n"
            "      --no-checksum          do not verify section checksums on load\n"
-           "      --no-validate          do not validate the structure before tracing\n"
+
            "  -h, --help                 this help\n"
            "  -V, --version              the version\n\n"
            "Prints the device, the ray count, the trace time (GPU: median of device-event\n"
@@ -41,7 +41,7 @@ static void usage(void)
 int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
-           OPT_NO_CHECKSUM, OPT_NO_VALIDATE };
+           OPT_NO_CHECKSUM };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"eye", required_argument, 0, OPT_EYE},
@@ -57,7 +57,6 @@ int main(int argc, char **argv)
         {"runs", required_argument, 0, OPT_RUNS},
         {"threads", required_argument, 0, OPT_THREADS},
         {"no-checksum", no_argument, 0, OPT_NO_CHECKSUM},
-        {"no-validate", no_argument, 0, OPT_NO_VALIDATE},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
         {0, 0, 0, 0},
@@ -67,7 +66,7 @@ int main(int argc, char **argv)
     as_load_args_t load;
     as_load_args_default(&load);
     float eye[3], target[3], up[3] = {0, 1, 0}, fov = 45.0f;
-    int have_eye = 0, have_target = 0, have_fov = 0, validate = 1, c;
+    int have_eye = 0, have_target = 0, have_fov = 0, c;
     unsigned width = 1024, height = 768, u;
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL;
     opterr = 0;
@@ -95,7 +94,6 @@ int main(int argc, char **argv)
         case OPT_RUNS: if (!tool_parse_u32(optarg, &u) || !u) return tool_usage_error(TOOL, "--runs needs a positive integer, got '%s'", optarg); targs.timed_runs = u; break;
         case OPT_THREADS: if (!tool_parse_u32(optarg, &u)) return tool_usage_error(TOOL, "--threads needs an integer, got '%s'", optarg); targs.thread_count = u; break;
         case OPT_NO_CHECKSUM: load.verify_checksums = false; break;
-        case OPT_NO_VALIDATE: validate = 0; break;
         case 'h': usage(); return EXIT_OK;
         case 'V': tool_print_version(TOOL); return EXIT_OK;
         default: return tool_usage_error(TOOL, "unknown or incomplete option '%s'", argv[optind - 1]);
@@ -112,7 +110,9 @@ int main(int argc, char **argv)
     as_ray_t *rays = NULL;
     as_hit_t *hits = NULL;
     size_t count = 0;
-    if (validate && as_structure_validate(s) != AS_OK) { code = tool_fail(TOOL); goto done; }
+    /* Always: a kernel must never read a file that could send it out of
+     * bounds, and validation costs one linear pass. */
+    if (as_structure_validate(s) != AS_OK) { code = tool_fail(TOOL); goto done; }
     if (rays_path) {
         if (as_rays_read(rays_path, &rays, &count) != AS_OK) { code = tool_fail(TOOL); goto done; }
     } else {

@@ -39,7 +39,7 @@ void *as_aligned_alloc(size_t bytes, const char *what);
 
 /* What libas knows of one stored layout: its sections, and how to validate,
  * describe and trace it. One table per layout, in the layout's own file
- * (bvh2_ops.c, ...); adding a structure adds a table to as_layouts. */
+ * (bvh2_layout_ops.c, ...); adding a structure adds a table to as_layouts. */
 #define AS_LAYOUT_MAX_SECTIONS 6
 
 typedef struct as_layout_section {
