@@ -77,7 +77,13 @@ typedef struct as_meta {
     uint32_t reserved0;            /* must be zero */
     double sah_cost;
     uint64_t reserved1;            /* must be zero (build time is not stored: files are reproducible) */
-    uint8_t reserved[112];         /* must be zero */
+    uint64_t empty_leaf_count;     /* leaves (grid: cells) without triangles */
+    uint64_t reference_count;      /* triangle references in all leaves */
+    uint32_t max_depth_limit;      /* build parameter: depth cap */
+    float grid_lambda;             /* build parameter: grid cells per triangle */
+    float split_budget;            /* build parameter: SBVH/KD reference budget */
+    float sbvh_alpha;              /* build parameter: SBVH overlap threshold */
+    uint8_t reserved[80];          /* must be zero */
 } as_meta_t;
 
 _Static_assert(sizeof(asf_header_t) == 64, "asf_header_t is 64 bytes");

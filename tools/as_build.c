@@ -15,8 +15,16 @@ static void usage(void)
            "Builds an acceleration structure over a triangle mesh and writes it as .asf.\n"
            "MESH: .obj .ply .off .stl .drc, each optionally compressed as NAME.EXT.zst.\n\n"
            "  -o, --output FILE         the .asf file to write (temporary file, then rename)\n"
-           "      --structure KIND      bvh (default)\n"
-           "      --builder NAME        sah: binned SAH (default)\n"
+           "      --structure KIND      bvh (default), kd, bih, octree, grid\n"
+           "      --builder NAME        bvh: sah (binned, default), sweep, midcut, sbvh;\n"
+           "                            kd: sah (default), midcut\n"
+           "      --layout NAME         bvh: bvh2-child-bounds (default), bvh2-own-bounds;\n"
+           "                            kd: kd-standard (default), kd-ropes\n"
+           "      --max-depth N         depth cap (default: the structure's; never deeper\n"
+           "                            than its traversal stack)\n"
+           "      --lambda X            grid: cells per triangle (default 4)\n"
+           "      --split-budget X      sbvh, kd: at most X times as many references as\n"
+           "                            triangles (default 4)\n"
            "      --leaf-size N         largest leaf, triangles (default 4)\n"
            "      --bins N              SAH bins per axis, 2..256 (default 32)\n"
            "      --cost-traversal X    SAH cost of a node visit (default 1)\n"
@@ -33,7 +41,8 @@ static void usage(void)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_STRUCTURE = 256, OPT_BUILDER, OPT_LEAF, OPT_BINS, OPT_CT, OPT_CI, OPT_THREADS, OPT_COMPRESS };
+    enum { OPT_STRUCTURE = 256, OPT_BUILDER, OPT_LEAF, OPT_BINS, OPT_CT, OPT_CI, OPT_THREADS, OPT_COMPRESS,
+           OPT_LAYOUT, OPT_MAX_DEPTH, OPT_LAMBDA, OPT_BUDGET };
     static const struct option opts[] = {
         {"output", required_argument, 0, 'o'},
         {"structure", required_argument, 0, OPT_STRUCTURE},
@@ -44,6 +53,10 @@ int main(int argc, char **argv)
         {"cost-intersection", required_argument, 0, OPT_CI},
         {"threads", required_argument, 0, OPT_THREADS},
         {"compress", optional_argument, 0, OPT_COMPRESS},
+        {"layout", required_argument, 0, OPT_LAYOUT},
+        {"max-depth", required_argument, 0, OPT_MAX_DEPTH},
+        {"lambda", required_argument, 0, OPT_LAMBDA},
+        {"split-budget", required_argument, 0, OPT_BUDGET},
         {"quiet", no_argument, 0, 'q'},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
@@ -54,7 +67,7 @@ int main(int argc, char **argv)
     args.progress = tool_progress;
     as_save_args_t save;
     as_save_args_default(&save);
-    const char *out = NULL;
+    const char *out = NULL, *builder_name = NULL;
     int quiet = 0, c;
     unsigned u;
     opterr = 0;
@@ -62,12 +75,23 @@ int main(int argc, char **argv)
         switch (c) {
         case 'o': out = optarg; break;
         case OPT_STRUCTURE:
-            if (strcmp(optarg, "bvh") != 0) return tool_usage_error(TOOL, "unknown structure '%s' (known: bvh)", optarg);
-            args.structure = AS_STRUCT_BVH;
+            args.structure = as_structure_kind_from_name(optarg);
+            if (!args.structure) return tool_usage_error(TOOL, "unknown structure '%s' (known: bvh, kd, bih, octree, grid)", optarg);
             break;
-        case OPT_BUILDER:
-            if (strcmp(optarg, "sah") != 0) return tool_usage_error(TOOL, "unknown builder '%s' for bvh (known: sah)", optarg);
-            args.builder = AS_BUILDER_BVH_SAH_BINNED;
+        case OPT_BUILDER: builder_name = optarg; break;
+        case OPT_LAYOUT:
+            args.layout = as_layout_from_name(optarg);
+            if (!args.layout) return tool_usage_error(TOOL, "unknown layout '%s'", optarg);
+            break;
+        case OPT_MAX_DEPTH:
+            if (!tool_parse_u32(optarg, &u) || u < 1) return tool_usage_error(TOOL, "--max-depth needs a positive integer, got '%s'", optarg);
+            args.max_depth = u;
+            break;
+        case OPT_LAMBDA:
+            if (!tool_parse_float(optarg, &args.grid_lambda) || args.grid_lambda <= 0) return tool_usage_error(TOOL, "--lambda needs a number > 0, got '%s'", optarg);
+            break;
+        case OPT_BUDGET:
+            if (!tool_parse_float(optarg, &args.split_budget) || args.split_budget < 1) return tool_usage_error(TOOL, "--split-budget needs a number >= 1, got '%s'", optarg);
             break;
         case OPT_LEAF:
             if (!tool_parse_u32(optarg, &u) || u < 1) return tool_usage_error(TOOL, "--leaf-size needs a positive integer, got '%s'", optarg);
@@ -100,6 +124,11 @@ int main(int argc, char **argv)
     }
     if (optind != argc - 1) return tool_usage_error(TOOL, "expected one mesh file, got %d", argc - optind);
     if (!out) return tool_usage_error(TOOL, "missing -o FILE.asf");
+    if (builder_name) {
+        args.builder = as_builder_from_name(args.structure, builder_name);
+        if (!args.builder)
+            return tool_usage_error(TOOL, "unknown builder '%s' for %s", builder_name, as_structure_kind_name(args.structure));
+    }
     const char *in = argv[optind];
 
     as_mesh_t *mesh = as_mesh_import(in);
@@ -122,11 +151,15 @@ int main(int argc, char **argv)
         printf("mesh:         %s\n", in);
         printf("triangles:    %u (faces in file %llu, polygons fanned %u, zero-area %u never hit)\n", mi.triangle_count,
                (unsigned long long)mi.faces_in_file, mi.polygon_faces, mi.degenerate_count);
-        printf("structure:    bvh, binned SAH, child-bounds layout v%u\n", st.layout_version);
+        printf("structure:    %s, builder %s, layout %s v%u\n", as_structure_kind_name(st.structure),
+               as_builder_name(st.builder), as_layout_name(st.layout), st.layout_version);
         printf("parameters:   leaf size %u, bins %u, cost traversal %g, intersection %g\n", st.max_leaf_size,
                st.bin_count, (double)st.cost_traversal, (double)st.cost_intersection);
-        printf("nodes:        %llu inner, %llu leaves\n", (unsigned long long)st.node_count,
-               (unsigned long long)st.leaf_count);
+        printf("nodes:        %llu inner, %llu leaves (%llu empty), %.2f triangles per leaf\n",
+               (unsigned long long)st.node_count, (unsigned long long)st.leaf_count,
+               (unsigned long long)st.empty_leaf_count, st.average_leaf_size);
+        if (st.grid_dims[0])
+            printf("grid:         %u x %u x %u cells\n", st.grid_dims[0], st.grid_dims[1], st.grid_dims[2]);
         printf("max depth:    %u (average leaf depth %.2f)\n", st.max_depth, st.average_leaf_depth);
         printf("SAH cost:     %.3f\n", st.sah_cost);
         printf("size:         %.3f MB (%.1f bytes per triangle)\n", (double)st.structure_bytes / 1e6,

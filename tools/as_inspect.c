@@ -23,20 +23,10 @@ static void usage(void)
            TOOL);
 }
 
-static const char *kind_name(as_structure_kind_t k)
-{
-    return k == AS_STRUCT_BVH ? "bvh" : "unknown";
-}
-
-static const char *builder_name(as_builder_t b)
-{
-    return b == AS_BUILDER_BVH_SAH_BINNED ? "sah-binned" : "unknown";
-}
-
-static const char *layout_name(as_layout_t l)
-{
-    return l == AS_LAYOUT_BVH2_CHILD_BOUNDS ? "bvh2-child-bounds" : "unknown";
-}
+static const char *or_unknown(const char *name) { return name ? name : "unknown"; }
+#define kind_name(k) or_unknown(as_structure_kind_name(k))
+#define builder_name(b) or_unknown(as_builder_name(b))
+#define layout_name(l) or_unknown(as_layout_name(l))
 
 static const char *checksum_word(int status)
 {
@@ -154,17 +144,22 @@ int main(int argc, char **argv)
                (double)st.bounds_lo[2], (double)st.bounds_hi[0], (double)st.bounds_hi[1], (double)st.bounds_hi[2]);
         printf("  \"triangles\": %u,\n  \"bytes\": %llu,\n  \"megabytes\": %.6f,\n  \"bytes_per_triangle\": %.3f,\n",
                st.triangle_count, (unsigned long long)st.structure_bytes, (double)st.structure_bytes / 1e6, bpt);
-        printf("  \"nodes\": %llu,\n  \"leaves\": %llu,\n  \"max_depth\": %u,\n  \"average_leaf_depth\": %.4f,\n",
-               (unsigned long long)st.node_count, (unsigned long long)st.leaf_count, st.max_depth,
-               st.average_leaf_depth);
+        printf("  \"nodes\": %llu,\n  \"leaves\": %llu,\n  \"empty_leaves\": %llu,\n  \"references\": %llu,\n"
+               "  \"average_leaf_size\": %.4f,\n  \"max_depth\": %u,\n  \"average_leaf_depth\": %.4f,\n",
+               (unsigned long long)st.node_count, (unsigned long long)st.leaf_count,
+               (unsigned long long)st.empty_leaf_count, (unsigned long long)st.reference_count, st.average_leaf_size,
+               st.max_depth, st.average_leaf_depth);
+        printf("  \"grid_dims\": [%u, %u, %u],\n", st.grid_dims[0], st.grid_dims[1], st.grid_dims[2]);
+        printf("  \"sah_cost_ratio\": \"%.2f/1\",\n", (double)(st.cost_traversal / st.cost_intersection));
         printf("  \"sah_cost\": %.6f,\n", st.sah_cost);
         print_histogram_json("depth_histogram", st.depth_histogram);
         print_histogram_json("leaf_size_histogram", st.leaf_size_histogram);
         printf("  \"validated\": %s\n}\n", validate ? "true" : "false");
     } else {
         printf("file:        %s\n", path);
-        printf("structure:   %s, layout %s v%u, written by %s %u\n", kind_name(st.structure), layout_name(st.layout),
-               st.layout_version, st.writer, st.writer_version);
+        printf("structure:   %s, layout %s v%u, written by %s %u.%u.%u\n", kind_name(st.structure),
+               layout_name(st.layout), st.layout_version, st.writer, st.writer_version / 10000,
+               st.writer_version / 100 % 100, st.writer_version % 100);
         printf("sections:\n  %-4s %-8s %12s %12s %12s %6s  %-5s %-11s %s\n", "tag", "flags", "offset", "stored",
                "raw", "stride", "zstd", "checksum", "purpose");
         for (uint32_t i = 0; i < nsec; ++i) {
@@ -179,8 +174,13 @@ int main(int argc, char **argv)
         printf("memory:      %.3f MB, %.1f bytes per triangle\n", (double)st.structure_bytes / 1e6, bpt);
         printf("nodes:       %llu inner, %llu leaves\n", (unsigned long long)st.node_count,
                (unsigned long long)st.leaf_count);
+        printf("leaves:      %llu empty, %llu references, %.2f per leaf\n", (unsigned long long)st.empty_leaf_count,
+               (unsigned long long)st.reference_count, st.average_leaf_size);
+        if (st.grid_dims[0])
+            printf("grid:        %u x %u x %u cells\n", st.grid_dims[0], st.grid_dims[1], st.grid_dims[2]);
         printf("depth:       max %u, average leaf depth %.2f\n", st.max_depth, st.average_leaf_depth);
-        printf("SAH cost:    %.3f (traversal %g, intersection %g)\n", st.sah_cost, (double)st.cost_traversal,
+        printf("SAH cost:    %.3f (ratio %.2f/1: traversal %g, intersection %g)\n", st.sah_cost,
+               (double)(st.cost_traversal / st.cost_intersection), (double)st.cost_traversal,
                (double)st.cost_intersection);
         printf("build:       %s, leaf size %u, bins %u\n", builder_name(st.builder), st.max_leaf_size, st.bin_count);
         printf("source hash: %016llx\n", (unsigned long long)st.source_hash);

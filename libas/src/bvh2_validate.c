@@ -63,7 +63,7 @@ as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
     int sp = 0;
     stack[sp] = 0; depths[sp] = 0; ++sp;
     node_seen[0] = 1;
-    uint64_t reached = 1, leaves = 0;
+    uint64_t reached = 1, leaves = 0, references = 0;
     uint32_t max_leaf_depth = 0;
     while (sp > 0 && err == AS_OK) {
         --sp;
@@ -103,6 +103,7 @@ as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
                 const uint64_t first = (uint64_t)(uint32_t)~c, count = n->count[k];
                 if (count == 0) continue; /* an empty child: never entered */
                 ++leaves;
+                references += count;
                 if (depth + 1 > max_leaf_depth) max_leaf_depth = depth + 1;
                 if (first > tri_count || count > tri_count - first) {
                     err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: node %d child %d: leaf triangles [%llu, %llu) outside the %llu of TRI4", name, ni, k,
@@ -142,6 +143,11 @@ as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
     if (err == AS_OK && s->meta.leaf_count != leaves)
         err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META leaf count is %llu but the tree has %llu leaves", name,
                            (unsigned long long)s->meta.leaf_count, (unsigned long long)leaves);
+    if (err == AS_OK && (s->meta.reference_count != references || s->meta.empty_leaf_count != 0))
+        err = as_set_error(AS_ERROR_INVALID_STRUCTURE,
+                           "%s: META reference count %llu and empty leaf count %llu, but the leaves hold %llu references and none is empty",
+                           name, (unsigned long long)s->meta.reference_count,
+                           (unsigned long long)s->meta.empty_leaf_count, (unsigned long long)references);
     if (err == AS_OK && s->meta.max_depth != max_leaf_depth)
         err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says max depth %u but the deepest leaf is at %u", name,
                            s->meta.max_depth, max_leaf_depth);

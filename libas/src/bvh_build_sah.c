@@ -432,6 +432,8 @@ as_error_t as_bvh_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, 
     s->meta.node_count = st.out_count;
     s->meta.leaf_count = st.leaf_count;
     s->meta.max_depth = st.max_depth;
+    s->meta.reference_count = st.tri_count;
+    s->meta.max_depth_limit = AS_BVH2_MAX_DEPTH;
     as_structure_add_section(s, ASF_TAG_BVH2, out, st.out_count, sizeof(as_bvh2_node_t));
     as_structure_add_section(s, ASF_TAG_TRI4, tris, st.tri_count, sizeof(as_tri4_t));
     s->meta.sah_cost = as_bvh2_sah_cost(s);

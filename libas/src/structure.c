@@ -43,13 +43,16 @@ void as_build_args_default(as_build_args_t *args)
     memset(args, 0, sizeof *args);
     args->size = sizeof *args;
     args->structure = AS_STRUCT_BVH;
-    args->builder = AS_BUILDER_BVH_SAH_BINNED;
+    args->builder = AS_BUILDER_DEFAULT;
     args->max_leaf_size = 4;
     args->bin_count = 32;
     /* Aila & Laine's GPU measurements put a node visit at about the cost of
      * one triangle test with the child-bounds layout. */
     args->cost_traversal = 1.0f;
     args->cost_intersection = 1.0f;
+    args->grid_lambda = 4.0f;
+    args->split_budget = 4.0f;
+    args->sbvh_alpha = 1e-5f;
 }
 
 void as_save_args_default(as_save_args_t *args)
@@ -75,6 +78,64 @@ void as_load_args_default(as_load_args_t *args)
         (dst).size = sizeof(type); \
     } } while (0)
 
+/* Every builder of this version. */
+typedef struct as_builder_entry {
+    uint32_t structure_kind;
+    uint32_t builder;
+    uint32_t default_layout;
+    const char *name;            /* short name, unique within the kind */
+    as_error_t (*build)(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+} as_builder_entry_t;
+
+static const as_builder_entry_t builders[] = {
+    {AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sah", as_bvh_build_sah},
+};
+
+/* The kind's first builder stands for AS_BUILDER_DEFAULT. */
+static const as_builder_entry_t *find_builder(uint32_t kind, uint32_t builder)
+{
+    for (size_t i = 0; i < sizeof builders / sizeof builders[0]; ++i)
+        if (builders[i].structure_kind == kind && (builder == AS_BUILDER_DEFAULT || builders[i].builder == builder))
+            return &builders[i];
+    return NULL;
+}
+
+static const struct { uint32_t value; const char *name; } kind_names[] = {
+    {AS_STRUCT_BVH, "bvh"}, {AS_STRUCT_KD, "kd"}, {AS_STRUCT_BIH, "bih"},
+    {AS_STRUCT_OCTREE, "octree"}, {AS_STRUCT_GRID, "grid"},
+}, layout_names[] = {
+    {AS_LAYOUT_BVH2_CHILD_BOUNDS, "bvh2-child-bounds"}, {AS_LAYOUT_BVH2_OWN_BOUNDS, "bvh2-own-bounds"},
+    {AS_LAYOUT_KD_STANDARD, "kd-standard"}, {AS_LAYOUT_KD_ROPES, "kd-ropes"}, {AS_LAYOUT_BIH, "bih"},
+    {AS_LAYOUT_OCTREE, "octree"}, {AS_LAYOUT_GRID, "grid"},
+}, builder_names[] = {
+    {AS_BUILDER_BVH_SAH_BINNED, "sah"}, {AS_BUILDER_BVH_SAH_SWEEP, "sweep"}, {AS_BUILDER_BVH_MIDCUT, "midcut"},
+    {AS_BUILDER_BVH_SBVH, "sbvh"}, {AS_BUILDER_KD_MIDCUT, "midcut"}, {AS_BUILDER_KD_SAH, "sah"},
+    {AS_BUILDER_BIH, "bih"}, {AS_BUILDER_OCTREE, "octree"}, {AS_BUILDER_GRID, "grid"},
+};
+
+#define NAME_OF(table, v) do { \
+    for (size_t _i = 0; _i < sizeof table / sizeof table[0]; ++_i) \
+        if (table[_i].value == (uint32_t)(v)) return table[_i].name; \
+    return NULL; } while (0)
+#define VALUE_OF(table, n) do { \
+    for (size_t _i = 0; n && _i < sizeof table / sizeof table[0]; ++_i) \
+        if (strcmp(table[_i].name, n) == 0) return table[_i].value; \
+    return 0; } while (0)
+
+const char *as_structure_kind_name(as_structure_kind_t kind) { NAME_OF(kind_names, kind); }
+const char *as_layout_name(as_layout_t layout) { NAME_OF(layout_names, layout); }
+const char *as_builder_name(as_builder_t builder) { NAME_OF(builder_names, builder); }
+as_structure_kind_t as_structure_kind_from_name(const char *name) { VALUE_OF(kind_names, name); }
+as_layout_t as_layout_from_name(const char *name) { VALUE_OF(layout_names, name); }
+
+as_builder_t as_builder_from_name(as_structure_kind_t kind, const char *name)
+{
+    for (size_t i = 0; name && i < sizeof builder_names / sizeof builder_names[0]; ++i)
+        if ((builder_names[i].value >> 8) == ((uint32_t)kind >> 8) && strcmp(builder_names[i].name, name) == 0)
+            return (as_builder_t)builder_names[i].value;
+    return AS_BUILDER_DEFAULT;
+}
+
 as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t *user_args)
 {
     if (!mesh) {
@@ -86,16 +147,14 @@ as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t 
     as_structure_t *s = as_calloc(1, sizeof *s, "structure");
     if (!s) return NULL;
     as_error_t err;
-    switch (args.structure) {
-    case AS_STRUCT_BVH:
-        if (args.builder != AS_BUILDER_BVH_SAH_BINNED) {
-            err = as_set_error(AS_ERROR_UNSUPPORTED, "builder 0x%04x is not a BVH builder of this version", (unsigned)args.builder);
-            break;
-        }
-        err = as_bvh_build_sah(mesh, &args, s);
-        break;
-    default:
-        err = as_set_error(AS_ERROR_UNSUPPORTED, "structure kind 0x%04x is not supported by this version", (unsigned)args.structure);
+    const as_builder_entry_t *b = find_builder(args.structure, args.builder);
+    if (!b) {
+        err = as_set_error(AS_ERROR_UNSUPPORTED, "no builder 0x%04x for structure kind 0x%04x (%s) in this version",
+                           (unsigned)args.builder, (unsigned)args.structure,
+                           as_structure_kind_name(args.structure) ? as_structure_kind_name(args.structure) : "unknown");
+    } else {
+        if (args.layout == AS_LAYOUT_DEFAULT) args.layout = (as_layout_t)b->default_layout;
+        err = b->build(mesh, &args, s);
     }
     if (err != AS_OK) {
         as_structure_release(s);
@@ -281,7 +340,10 @@ as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t 
     st->writer_version = s->meta.writer_version;
     st->structure_bytes = sizeof(as_meta_t);
     for (uint32_t i = 0; i < s->section_count; ++i) st->structure_bytes += s->sections[i].bytes;
+    st->empty_leaf_count = s->meta.empty_leaf_count;
+    st->reference_count = s->meta.reference_count;
     as_structure_ops(s)->stats(s, st);
+    st->average_leaf_size = st->leaf_count ? (double)st->reference_count / (double)st->leaf_count : 0.0;
     return AS_OK;
 }
 

@@ -123,18 +123,52 @@ const uint32_t *as_mesh_material_ids(const as_mesh_t *mesh); /* 1 per triangle *
 
 /* On-disk enums: sparse values by family, never renumbered. */
 typedef enum as_structure_kind {
-    AS_STRUCT_BVH = 0x0100
+    AS_STRUCT_BVH = 0x0100,
+    AS_STRUCT_KD = 0x0200,
+    AS_STRUCT_BIH = 0x0300,
+    AS_STRUCT_OCTREE = 0x0400,
+    AS_STRUCT_GRID = 0x0500
 } as_structure_kind_t;
 
 typedef enum as_layout {
+    AS_LAYOUT_DEFAULT = 0,          /* build args: the structure's first layout */
     /* Binary BVH whose 64-byte nodes hold both children's boxes (Aila &
      * Laine 2009), triangles as 3 x float4 in leaf order. */
-    AS_LAYOUT_BVH2_CHILD_BOUNDS = 0x0101
+    AS_LAYOUT_BVH2_CHILD_BOUNDS = 0x0101,
+    /* The classic binary BVH: every node stores its own box. */
+    AS_LAYOUT_BVH2_OWN_BOUNDS = 0x0102,
+    /* KD tree, 8-byte nodes, traversed with a stack of node and tmax. */
+    AS_LAYOUT_KD_STANDARD = 0x0201,
+    /* The same tree plus six ropes and a box per leaf, traversed stacklessly. */
+    AS_LAYOUT_KD_ROPES = 0x0202,
+    AS_LAYOUT_BIH = 0x0301,
+    AS_LAYOUT_OCTREE = 0x0401,
+    AS_LAYOUT_GRID = 0x0501
 } as_layout_t;
 
 typedef enum as_builder {
-    AS_BUILDER_BVH_SAH_BINNED = 0x0101
+    AS_BUILDER_DEFAULT = 0,         /* build args: the structure's usual builder */
+    AS_BUILDER_BVH_SAH_BINNED = 0x0101,
+    AS_BUILDER_BVH_SAH_SWEEP = 0x0102,
+    AS_BUILDER_BVH_MIDCUT = 0x0103, /* object median on the longest axis */
+    AS_BUILDER_BVH_SBVH = 0x0104,   /* spatial splits (Stich et al. 2009) */
+    AS_BUILDER_KD_MIDCUT = 0x0201,  /* spatial median */
+    AS_BUILDER_KD_SAH = 0x0202,     /* O(N log N) SAH (Wald & Havran 2006) */
+    AS_BUILDER_BIH = 0x0301,        /* Wachter & Keller 2006 */
+    AS_BUILDER_OCTREE = 0x0401,
+    AS_BUILDER_GRID = 0x0501
 } as_builder_t;
+
+/* Names used on command lines and in reports ("bvh", "kd-ropes", "sbvh");
+ * NULL or 0 for an unknown value or name. */
+const char *as_structure_kind_name(as_structure_kind_t kind);
+const char *as_layout_name(as_layout_t layout);
+const char *as_builder_name(as_builder_t builder);
+as_structure_kind_t as_structure_kind_from_name(const char *name);
+as_layout_t as_layout_from_name(const char *name);
+/* A builder of the given kind by its short name ("sah", "midcut", "sbvh",
+ * "sweep"); 0 when the kind has no such builder. */
+as_builder_t as_builder_from_name(as_structure_kind_t kind, const char *name);
 
 typedef bool (*as_progress_fn)(void *user, double fraction);
 
@@ -150,6 +184,15 @@ typedef struct as_build_args {
     uint32_t thread_count;       /* 0: every core */
     as_progress_fn progress;     /* may be NULL; false cancels the build */
     void *progress_user;
+    as_layout_t layout;          /* AS_LAYOUT_DEFAULT or one of the kind's layouts */
+    uint32_t max_depth;          /* 0: the structure's default (never deeper
+                                    than its traversal stack) */
+    float grid_lambda;           /* grid: cells per triangle (default 4) */
+    float split_budget;          /* SBVH/KD: references at most this times
+                                    the triangle count (default 4) */
+    float sbvh_alpha;            /* SBVH: try spatial splits when the child
+                                    boxes overlap by more than this fraction
+                                    of the root's area (default 1e-5) */
 } as_build_args_t;
 
 void as_build_args_default(as_build_args_t *args);
@@ -207,7 +250,11 @@ typedef struct as_structure_stats {
     float cost_traversal, cost_intersection;
     uint32_t triangle_count;
     uint64_t node_count;          /* inner nodes */
-    uint64_t leaf_count;
+    uint64_t leaf_count;          /* leaves (grid: cells) holding triangles */
+    uint64_t empty_leaf_count;    /* leaves (grid: cells) holding none */
+    uint64_t reference_count;     /* triangle references in all leaves */
+    double average_leaf_size;     /* references per non-empty leaf */
+    uint32_t grid_dims[3];        /* grid: cells per axis; else 0 */
     uint32_t max_depth;           /* root = depth 0 */
     double average_leaf_depth;
     double sah_cost;              /* expected cost per ray, SAH with the costs above */
