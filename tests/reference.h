@@ -16,6 +16,8 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <stdio.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 typedef struct ref_scene {
@@ -165,6 +167,42 @@ static inline void ref_trace_all(const ref_scene *s, const as_ray_t *rays, size_
     pthread_t tid[64];
     for (long i = 0; i < n; ++i) pthread_create(&tid[i], NULL, ref_worker, &j);
     for (long i = 0; i < n; ++i) pthread_join(tid[i], NULL);
+}
+
+/* The reference for many rays, kept in a cache file under `dir` keyed by a
+ * hash of the rays and the scene, so that the variants of one scene share
+ * one brute-force pass. The cache is written to a temporary file and renamed;
+ * a damaged or foreign cache file is recomputed. */
+static inline void ref_trace_all_cached(const ref_scene *s, const as_mesh_t *mesh, const as_ray_t *rays,
+                                        size_t count, ref_hit *out, const char *dir)
+{
+    as_mesh_info_t info;
+    as_mesh_get_info(mesh, &info);
+    uint64_t key = info.hash ^ (0x9E3779B97F4A7C15ull * (uint64_t)count);
+    {
+        /* FNV-1a over the ray bytes: cheap and enough for a cache key. */
+        const unsigned char *b = (const unsigned char *)rays;
+        for (size_t i = 0; i < count * sizeof *rays; ++i) key = (key ^ b[i]) * 0x100000001B3ull;
+    }
+    char path[1024], tmp[1100];
+    snprintf(path, sizeof path, "%s/%016llx.ref", dir, (unsigned long long)key);
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        uint64_t stored_key = 0, stored_count = 0;
+        const int ok = fread(&stored_key, 8, 1, f) == 1 && fread(&stored_count, 8, 1, f) == 1 && stored_key == key &&
+                       stored_count == count && fread(out, sizeof *out, count, f) == count;
+        fclose(f);
+        if (ok) return;
+    }
+    ref_trace_all(s, rays, count, out);
+    mkdir(dir, 0777);
+    snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid());
+    f = fopen(tmp, "wb");
+    if (!f) return;
+    const uint64_t n64 = count;
+    const int ok = fwrite(&key, 8, 1, f) == 1 && fwrite(&n64, 8, 1, f) == 1 && fwrite(out, sizeof *out, count, f) == count;
+    if (fclose(f) == 0 && ok) rename(tmp, path);
+    else remove(tmp);
 }
 
 /* A small deterministic generator (splitmix64). */

@@ -15,6 +15,9 @@ static void usage(void)
            "  -o, --output FILE       the file to write (temporary file, then rename)\n"
            "      --compress[=LEVEL]  zstd-compress every section (default level 9)\n"
            "      --decompress        store every section raw (the default)\n"
+           "      --layout NAME       convert to another layout of the same structure:\n"
+           "                          bvh2-child-bounds <-> bvh2-own-bounds,\n"
+           "                          kd-standard <-> kd-ropes (adds or removes ropes)\n"
            "  -h, --help              this help\n"
            "  -V, --version           the version\n\n"
            "The structure is validated before it is written; unknown optional sections\n"
@@ -24,11 +27,12 @@ static void usage(void)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_COMPRESS = 256, OPT_DECOMPRESS };
+    enum { OPT_COMPRESS = 256, OPT_DECOMPRESS, OPT_LAYOUT };
     static const struct option opts[] = {
         {"output", required_argument, 0, 'o'},
         {"compress", optional_argument, 0, OPT_COMPRESS},
         {"decompress", no_argument, 0, OPT_DECOMPRESS},
+        {"layout", required_argument, 0, OPT_LAYOUT},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
         {0, 0, 0, 0},
@@ -36,6 +40,7 @@ int main(int argc, char **argv)
     as_save_args_t save;
     as_save_args_default(&save);
     const char *out = NULL;
+    as_layout_t layout = AS_LAYOUT_DEFAULT;
     int c;
     unsigned u;
     opterr = 0;
@@ -48,6 +53,10 @@ int main(int argc, char **argv)
             if (optarg) save.compression_level = (int)u;
             break;
         case OPT_DECOMPRESS: save.compression_level = 0; break;
+        case OPT_LAYOUT:
+            layout = as_layout_from_name(optarg);
+            if (!layout) return tool_usage_error(TOOL, "unknown layout '%s'", optarg);
+            break;
         case 'h': usage(); return EXIT_OK;
         case 'V': tool_print_version(TOOL); return EXIT_OK;
         default: return tool_usage_error(TOOL, "unknown or incomplete option '%s'", argv[optind - 1]);
@@ -57,6 +66,13 @@ int main(int argc, char **argv)
     if (!out) return tool_usage_error(TOOL, "missing -o OUT.asf");
     as_structure_t *s = as_structure_load(argv[optind], NULL);
     if (!s) return tool_fail(TOOL);
+    as_structure_stats_t st;
+    if (layout != AS_LAYOUT_DEFAULT && as_structure_get_stats(s, &st) == AS_OK && st.layout != layout) {
+        as_structure_t *converted = as_structure_convert(s, layout);
+        as_structure_release(s);
+        if (!converted) return tool_fail(TOOL);
+        s = converted;
+    }
     if (as_structure_validate(s) != AS_OK || as_structure_save(s, out, &save) != AS_OK) {
         const int code = tool_fail(TOOL);
         as_structure_release(s);

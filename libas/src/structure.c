@@ -310,6 +310,29 @@ as_structure_t *as_structure_load_memory(const void *data, size_t size, const ch
     return finish_load(asf_open_memory(data, size, name, &oa), name);
 }
 
+as_structure_t *as_structure_convert(const as_structure_t *s, as_layout_t layout)
+{
+    if (!s) {
+        as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_convert: NULL structure");
+        return NULL;
+    }
+    const as_layout_ops_t *from = as_structure_ops(s);
+    const as_layout_ops_t *to = as_layout_find(s->meta.structure_kind, layout);
+    if (!to || !from->convert) {
+        as_set_error(AS_ERROR_UNSUPPORTED, "no conversion from layout %s to %s", from->layout_name,
+                     as_layout_name(layout) ? as_layout_name(layout) : "(unknown)");
+        return NULL;
+    }
+    if (as_structure_validate(s) != AS_OK) return NULL;
+    as_structure_t *d = as_calloc(1, sizeof *d, "structure");
+    if (!d) return NULL;
+    if (from->convert(s, layout, d) != AS_OK) {
+        as_structure_release(d);
+        return NULL;
+    }
+    return d;
+}
+
 as_error_t as_structure_validate(const as_structure_t *s)
 {
     if (!s) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_validate: NULL structure");

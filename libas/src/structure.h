@@ -63,6 +63,9 @@ typedef struct as_layout_ops {
     /* Traces rays [0, count) on the calling thread. */
     void (*trace_cpu)(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count,
                       int any_hit);
+    /* Fills `dst` (zeroed) with the same structure in `target` layout, or
+     * returns AS_ERROR_UNSUPPORTED; NULL when the layout converts to none. */
+    as_error_t (*convert)(const as_structure_t *src, uint32_t target, as_structure_t *dst);
     /* The CUDA back end, or NULL where this build has none. */
     as_error_t (*trace_gpu)(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                             int any_hit, unsigned timed_runs, as_trace_timing_t *timing);

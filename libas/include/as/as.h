@@ -233,6 +233,12 @@ as_structure_t *as_structure_load_memory(const void *data, size_t size, const ch
 
 void as_structure_release(as_structure_t *s);
 
+/* A new structure with the same tree in another layout of its kind: the
+ * BVH's child-bounds and own-bounds layouts either way, a KD tree with or
+ * without ropes. Fails with AS_ERROR_UNSUPPORTED for any other pair. The
+ * source is validated first. */
+as_structure_t *as_structure_convert(const as_structure_t *s, as_layout_t layout);
+
 /* Checks the structure itself: indices in range, each node referenced once,
  * children inside their parent's box, depth within the traversal stack,
  * finite floats. Returns AS_ERROR_INVALID_STRUCTURE with a message naming

@@ -1,0 +1,335 @@
+/* Every structure variant against the double-precision reference, through
+ * the public API only: build, validate, save, load, trace on the CPU.
+ *
+ *   test_variants STRUCTURE BUILDER LAYOUT           synthetic cases
+ *   test_variants STRUCTURE BUILDER LAYOUT scene NAME RAYS
+ *
+ * Synthetic cases: random soups; closed meshes hit exactly on their edges and
+ * vertices (zero leaks); rays parallel to each axis from vertex coordinates
+ * (which are the candidate split planes); +0 and -0 direction components
+ * (identical results); origins inside the scene. */
+#include "reference.h"
+#include "test_util.h"
+
+#include <stdio.h>
+#include <time.h>
+
+static as_build_args_t variant;
+static char variant_name[128];
+static char tmpdir[256];
+
+static as_structure_t *build_saved_and_loaded(const as_mesh_t *m)
+{
+    as_structure_t *built = as_structure_build(m, &variant);
+    if (!built) {
+        fprintf(stderr, "  %s: build failed: %s\n", variant_name, as_get_error_message());
+        CHECK(built != NULL);
+        return NULL;
+    }
+    CHECK_EQ_INT(as_structure_validate(built), AS_OK);
+    /* What users trace is the file: go through it. */
+    char path[512];
+    snprintf(path, sizeof path, "%s/variant.asf", tmpdir);
+    CHECK_EQ_INT(as_structure_save(built, path, NULL), AS_OK);
+    as_structure_release(built);
+    as_structure_t *s = as_structure_load(path, NULL);
+    if (!s) fprintf(stderr, "  %s: load failed: %s\n", variant_name, as_get_error_message());
+    CHECK(s != NULL);
+    if (s) CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+    if (s) {
+        as_structure_stats_t st;
+        CHECK_EQ_INT(as_structure_get_stats(s, &st), AS_OK);
+        CHECK_EQ_INT(st.structure, variant.structure);
+        if (variant.layout) CHECK_EQ_INT(st.layout, variant.layout);
+    }
+    unlink(path);
+    return s;
+}
+
+static as_hit_t *trace(const as_structure_t *s, const as_ray_t *rays, size_t n, int any_hit)
+{
+    as_trace_args_t ta;
+    as_trace_args_default(&ta);
+    ta.device = AS_DEVICE_CPU;
+    ta.any_hit = any_hit;
+    as_hit_t *hits = malloc(sizeof *hits * (n ? n : 1));
+    if (as_trace(s, rays, n, hits, &ta, NULL) != AS_OK) {
+        fprintf(stderr, "  trace failed: %s\n", as_get_error_message());
+        CHECK(0);
+        free(hits);
+        return NULL;
+    }
+    return hits;
+}
+
+static size_t compare(const char *what, const as_mesh_t *m, const as_structure_t *s, const as_ray_t *rays, size_t n,
+                      int expect_hits)
+{
+    ref_scene rs;
+    CHECK(ref_scene_init(&rs, m));
+    ref_hit *ref = malloc(sizeof *ref * n);
+    ref_trace_all_cached(&rs, m, rays, n, ref, AS_BINARY_DIR "/reference_cache");
+    as_hit_t *hits = trace(s, rays, n, 0);
+    size_t bad = 0, nhit = 0;
+    for (size_t i = 0; hits && i < n; ++i) {
+        nhit += ref[i].prim != AS_NO_HIT;
+        if (!ref_agrees(&rs, &rays[i], &ref[i], &hits[i])) {
+            if (bad < 5)
+                fprintf(stderr, "  %s %s ray %zu: org (%.9g %.9g %.9g) dir (%.9g %.9g %.9g): reference prim %u t %.9g, "
+                        "traversal prim %u t %.9g\n", variant_name, what, i, (double)rays[i].org[0], (double)rays[i].org[1],
+                        (double)rays[i].org[2], (double)rays[i].dir[0], (double)rays[i].dir[1], (double)rays[i].dir[2],
+                        ref[i].prim, ref[i].t, hits[i].prim, (double)hits[i].t);
+            ++bad;
+        }
+    }
+    /* Any hit: a hit exactly when the reference has one. */
+    as_hit_t *any = hits ? trace(s, rays, n, 1) : NULL;
+    size_t bad_any = 0;
+    for (size_t i = 0; any && i < n; ++i) bad_any += (ref[i].prim != AS_NO_HIT) != (any[i].prim != AS_NO_HIT);
+    fprintf(stderr, "  %s %s: %zu rays, %zu hit in the reference, %zu closest-hit and %zu any-hit disagree\n",
+            variant_name, what, n, nhit, bad, bad_any);
+    if (expect_hits) CHECK(nhit > 0);
+    CHECK_EQ_U64(bad, 0);
+    CHECK_EQ_U64(bad_any, 0);
+    free(any);
+    free(hits);
+    free(ref);
+    ref_scene_free(&rs);
+    return bad;
+}
+
+static as_mesh_t *random_soup(uint64_t seed, uint32_t tris, float size)
+{
+    uint64_t st = seed;
+    float *p = malloc(sizeof(float) * 9 * tris);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * tris);
+    for (uint32_t t = 0; t < tris; ++t) {
+        float c[3];
+        for (int k = 0; k < 3; ++k) c[k] = (float)ref_rand01(&st);
+        for (int v = 0; v < 3; ++v)
+            for (int k = 0; k < 3; ++k) p[9 * t + 3 * v + k] = c[k] + size * (float)(ref_rand01(&st) - 0.5);
+        for (int v = 0; v < 3; ++v) ix[3 * t + v] = 3 * t + v;
+    }
+    as_mesh_t *m = as_mesh_create(3 * tris, p, tris, ix);
+    free(p);
+    free(ix);
+    return m;
+}
+
+static void variant_matches_reference_on_random_soups(void)
+{
+    const struct { uint32_t tris; float size; } soups[] = {{1, 0.5f}, {9, 0.5f}, {2000, 0.1f}, {20000, 0.03f}};
+    for (size_t k = 0; k < sizeof soups / sizeof soups[0]; ++k) {
+        as_mesh_t *m = random_soup(500 + k, soups[k].tris, soups[k].size);
+        as_structure_t *s = build_saved_and_loaded(m);
+        if (s) {
+            const size_t n = 10000;
+            as_ray_t *rays = malloc(sizeof *rays * n);
+            ref_make_scene_rays(m, n, 11 + k, rays);
+            char what[64];
+            snprintf(what, sizeof what, "soup of %u", soups[k].tris);
+            compare(what, m, s, rays, n, 1);
+            free(rays);
+        }
+        as_structure_release(s);
+        as_mesh_release(m);
+    }
+}
+
+/* A cube of n x n quads per face on the integer lattice (vertices shared, so
+ * closed), offset by `offset`. */
+static as_mesh_t *lattice_cube(int n, float offset)
+{
+    const int side = n + 1;
+    int32_t *id = malloc(sizeof(int32_t) * side * side * side);
+    float *p = malloc(sizeof(float) * 3 * side * side * side);
+    uint32_t nv = 0;
+    for (int i = 0; i < side; ++i)
+        for (int j = 0; j < side; ++j)
+            for (int k = 0; k < side; ++k) {
+                const int on = i == 0 || j == 0 || k == 0 || i == n || j == n || k == n;
+                id[(i * side + j) * side + k] = on ? (int32_t)nv : -1;
+                if (on) { p[3 * nv] = offset + i; p[3 * nv + 1] = offset + j; p[3 * nv + 2] = offset + k; ++nv; }
+            }
+    uint32_t *ix = malloc(sizeof(uint32_t) * 36 * n * n), nt = 0;
+    for (int f = 0; f < 6; ++f) {
+        const int axis = f / 2, fixed = (f % 2) ? n : 0;
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b < n; ++b) {
+                uint32_t v[4];
+                const int uv[4][2] = {{a, b}, {a + 1, b}, {a + 1, b + 1}, {a, b + 1}};
+                for (int c = 0; c < 4; ++c) {
+                    int q[3];
+                    q[axis] = fixed;
+                    q[(axis + 1) % 3] = uv[c][0];
+                    q[(axis + 2) % 3] = uv[c][1];
+                    v[c] = (uint32_t)id[(q[0] * side + q[1]) * side + q[2]];
+                }
+                ix[3 * nt] = v[0]; ix[3 * nt + 1] = v[1]; ix[3 * nt + 2] = v[2]; ++nt;
+                ix[3 * nt] = v[0]; ix[3 * nt + 1] = v[2]; ix[3 * nt + 2] = v[3]; ++nt;
+            }
+    }
+    as_mesh_t *m = as_mesh_create(nv, p, nt, ix);
+    free(id);
+    free(p);
+    free(ix);
+    return m;
+}
+
+static void variant_has_no_leaks_on_closed_meshes(void)
+{
+    const float offsets[] = {0.0f, 1000.0f};
+    for (size_t c = 0; c < 2; ++c) {
+        const int n = 6;
+        as_mesh_t *m = lattice_cube(n, offsets[c]);
+        as_structure_t *s = build_saved_and_loaded(m);
+        if (!s) { as_mesh_release(m); continue; }
+        const float ctr = offsets[c] + n / 2.0f;
+        /* Through every lattice point of the surface and the midpoints
+         * between neighbours: from the centre out, and from outside in. */
+        const size_t cap = 2 * 6 * (2 * n + 1) * (2 * n + 1);
+        as_ray_t *rays = malloc(sizeof *rays * cap);
+        size_t k = 0;
+        for (int f = 0; f < 6; ++f)
+            for (int a = 0; a <= 2 * n; ++a)
+                for (int b = 0; b <= 2 * n; ++b) {
+                    float q[3];
+                    q[f / 2] = offsets[c] + ((f % 2) ? n : 0);
+                    q[(f / 2 + 1) % 3] = offsets[c] + a * 0.5f;
+                    q[(f / 2 + 2) % 3] = offsets[c] + b * 0.5f;
+                    as_ray_t *in = &rays[k++], *out = &rays[k++];
+                    for (int d = 0; d < 3; ++d) {
+                        in->org[d] = ctr;
+                        in->dir[d] = q[d] - ctr;
+                        out->org[d] = ctr + 3.0f * (q[d] - ctr);
+                        out->dir[d] = ctr - out->org[d];
+                    }
+                    in->tmin = out->tmin = 0.0f;
+                    in->tmax = INFINITY;
+                    out->tmax = 1.0f;
+                }
+        as_hit_t *hits = trace(s, rays, k, 0);
+        size_t leaks = 0;
+        for (size_t i = 0; hits && i < k; ++i) leaks += hits[i].prim == AS_NO_HIT;
+        fprintf(stderr, "  %s closed cube at %g: %zu rays through edges and vertices, %zu leaks\n", variant_name,
+                (double)offsets[c], k, leaks);
+        CHECK_EQ_U64(leaks, 0);
+        compare("closed cube", m, s, rays, k, 1);
+        free(hits);
+        free(rays);
+        as_structure_release(s);
+        as_mesh_release(m);
+    }
+}
+
+/* Axis-parallel rays, with every sign of zero in the other components: the
+ * results for +0 and -0 must be identical, and agree with the reference.
+ * Origins sit on vertex coordinates, where spatial splits, box faces and
+ * grid walls lie. */
+static void variant_handles_axis_parallel_rays_and_signed_zeros(void)
+{
+    as_mesh_t *m = random_soup(77, 3000, 0.1f);
+    const float *p = as_mesh_positions(m);
+    as_structure_t *s = build_saved_and_loaded(m);
+    if (!s) { as_mesh_release(m); return; }
+    const size_t base = 2000, n = base * 6 * 4;
+    as_ray_t *rays = malloc(sizeof *rays * n);
+    uint64_t st = 3;
+    size_t k = 0;
+    for (size_t i = 0; i < base; ++i) {
+        const uint32_t v = (uint32_t)(ref_rand_u64(&st) % 9000), w = (uint32_t)(ref_rand_u64(&st) % 9000);
+        for (int axis = 0; axis < 3; ++axis)
+            for (int sign = 0; sign < 2; ++sign)
+                for (int zeros = 0; zeros < 4; ++zeros) {
+                    as_ray_t *r = &rays[k++];
+                    for (int d = 0; d < 3; ++d) {
+                        /* The origin shares the other coordinates with vertices. */
+                        r->org[d] = d == axis ? (sign ? 2.0f : -1.0f) : (d == (axis + 1) % 3 ? p[3 * v + d] : p[3 * w + d]);
+                        r->dir[d] = d == axis ? (sign ? -1.0f : 1.0f)
+                                              : ((zeros >> (d == (axis + 1) % 3 ? 0 : 1)) & 1 ? -0.0f : 0.0f);
+                    }
+                    r->tmin = 0.0f;
+                    r->tmax = INFINITY;
+                }
+    }
+    as_hit_t *hits = trace(s, rays, k, 0);
+    size_t differ = 0;
+    for (size_t i = 0; hits && i < k; i += 4)
+        for (int z = 1; z < 4; ++z) differ += memcmp(&hits[i], &hits[i + z], sizeof hits[i]) != 0;
+    fprintf(stderr, "  %s axis-parallel: %zu rays, %zu results differ between +0 and -0\n", variant_name, k, differ);
+    CHECK_EQ_U64(differ, 0);
+    compare("axis-parallel", m, s, rays, k, 1);
+    free(hits);
+    free(rays);
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
+static void variant_matches_reference_on_scene(const char *name, size_t n)
+{
+    char buf[4096];
+    const char *path = test_scene_or_exit(name, buf, sizeof buf);
+    as_mesh_t *m = as_mesh_import(path);
+    CHECK(m != NULL);
+    if (!m) return;
+    as_structure_t *s = build_saved_and_loaded(m);
+    if (s) {
+        as_ray_t *rays = malloc(sizeof *rays * n);
+        ref_make_scene_rays(m, n, 4242, rays);
+        compare(name, m, s, rays, n, 1);
+        free(rays);
+    }
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc == 4 && strcmp(argv[1], "reference") == 0) {
+        /* Fills the reference cache of a scene (the fixture the scene tests of
+         * every variant share). */
+        char buf[4096];
+        as_mesh_t *m = as_mesh_import(test_scene_or_exit(argv[2], buf, sizeof buf));
+        if (!m) { fprintf(stderr, "%s\n", as_get_error_message()); return 1; }
+        const size_t n = (size_t)strtoull(argv[3], NULL, 10);
+        as_ray_t *rays = malloc(sizeof *rays * n);
+        ref_hit *ref = malloc(sizeof *ref * n);
+        ref_make_scene_rays(m, n, 4242, rays);
+        ref_scene rs;
+        if (!ref_scene_init(&rs, m)) return 1;
+        const double t0 = (double)clock();
+        ref_trace_all_cached(&rs, m, rays, n, ref, AS_BINARY_DIR "/reference_cache");
+        fprintf(stderr, "reference for %s: %zu rays (%.1f s of CPU)\n", argv[2], n, ((double)clock() - t0) / CLOCKS_PER_SEC);
+        ref_scene_free(&rs);
+        free(rays);
+        free(ref);
+        as_mesh_release(m);
+        return 0;
+    }
+    if (argc < 4) {
+        fprintf(stderr, "usage: %s STRUCTURE BUILDER LAYOUT [scene NAME RAYS]\n", argv[0]);
+        return 2;
+    }
+    as_build_args_default(&variant);
+    variant.structure = as_structure_kind_from_name(argv[1]);
+    variant.builder = as_builder_from_name(variant.structure, argv[2]);
+    variant.layout = as_layout_from_name(argv[3]);
+    if (!variant.structure || !variant.builder || !variant.layout) {
+        fprintf(stderr, "unknown variant %s/%s/%s\n", argv[1], argv[2], argv[3]);
+        return 2;
+    }
+    snprintf(variant_name, sizeof variant_name, "%s/%s/%s", argv[1], argv[2], argv[3]);
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/as_test_variants_XXXXXX");
+    if (!mkdtemp(tmpdir)) return 1;
+    if (argc >= 7 && strcmp(argv[4], "scene") == 0) {
+        variant_matches_reference_on_scene(argv[5], (size_t)strtoull(argv[6], NULL, 10));
+        fprintf(stderr, "%s %s variant_matches_reference_on_scene %s\n", test_failures ? "FAIL" : "ok  ", variant_name,
+                argv[5]);
+    } else {
+        RUN_TEST(variant_matches_reference_on_random_soups);
+        RUN_TEST(variant_has_no_leaks_on_closed_meshes);
+        RUN_TEST(variant_handles_axis_parallel_rays_and_signed_zeros);
+    }
+    rmdir(tmpdir);
+    TEST_EXIT();
+}
