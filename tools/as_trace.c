@@ -1,5 +1,5 @@
-/* as-trace: trace rays through a prebuilt .asf file, on the GPU when there is
- * one, else on every CPU core. */
+/* as-trace: trace the study's workloads through a prebuilt .asf file, on the
+ * GPU when there is one, else on every CPU core. */
 #include "tool_common.h"
 
 #include <getopt.h>
@@ -13,49 +13,126 @@ static const char *TOOL = "as-trace";
 static void usage(void)
 {
     printf("Usage: %s FILE.asf [options]\n"
-           "Traces primary camera rays (or rays from a file) through a structure file.\n\n"
+           "Traces a workload through a structure file and reports the trace time alone.\n\n"
            "  -d, --device auto|cpu|gpu  where to trace (default: gpu when present, else cpu)\n"
+           "  -w, --workload NAME        primary (default), shadow, ao, diffuse, or all;\n"
+           "                             secondary rays start at the primary hits\n"
            "      --eye X,Y,Z            camera position\n"
            "      --target X,Y,Z         point the camera looks at\n"
            "      --up X,Y,Z             up vector (default 0,1,0)\n"
            "      --fov DEGREES          vertical field of view (default 45)\n"
            "                             Default camera: looking down -z at the centre of\n"
            "                             the scene box from where its bounding sphere fits.\n"
-           "  -W, --width N              image width (default 1024)\n"
-           "  -H, --height N             image height (default 768)\n"
+           "  -W, --width N              image width (default 1920)\n"
+           "  -H, --height N             image height (default 1080)\n"
+           "                             Primary rays go out in 16x32 tiles along a Morton curve.\n"
+           "      --light X,Y,Z          a point light for shadow rays (repeatable; default:\n"
+           "                             four lights from the scene box)\n"
+           "      --ao-rays N            AO rays per primary hit (default 16)\n"
+           "      --ao-radius F          AO ray length, fraction of the scene diagonal (0.1)\n"
+           "      --diffuse-rays N       diffuse rays per primary hit (default 4)\n"
            "      --rays FILE            trace the rays of a ray file instead of a camera\n"
-           "      --hits-out FILE        write the hits as a hit file\n"
-           "  -i, --image FILE.png       write a shaded image (camera rays only)\n"
-           "      --any-hit              stop at the first hit (shadow rays)\n"
-           "      --runs N               GPU: timed launches, median reported (default 5)\n"
+           "      --any-hit              with --rays: stop at the first hit\n"
+           "      --hits-out FILE        write the hits (primary or --rays) as a hit file\n"
+           "  -i, --image FILE.png       write an image: shaded primary hits, or AO when the\n"
+           "                             workload is ao\n"
+           "      --runs N               GPU: timed launches after a warm-up (default 10)\n"
+           "      --schedule NAME        GPU: persistent (default) or thread (one per ray)\n"
+           "      --batch N              GPU persistent threads: rays per atomic (default 32)\n"
+           "      --stats                also count steps and triangle tests per ray (GPU, in\n"
+           "                             a separate launch of a counting kernel)\n"
            "      --threads N            CPU threads (default: every core)\n"
+           "  -f, --format text|json     output format (default text)\n"
            "      --no-checksum          do not verify section checksums on load\n"
-
            "  -h, --help                 this help\n"
            "  -V, --version              the version\n\n"
-           "Prints the device, the ray count, the trace time (GPU: median of device-event\n"
-           "timed launches; CPU: wall clock) and Mrays/s for the trace alone.\n\n" TOOL_EXIT_CODES_HELP,
+           "The structure is always validated before a ray is traced. Times: GPU, the median\n"
+           "of the timed launches measured with device events around the kernel alone (rays\n"
+           "already on the device); CPU, wall clock of the trace.\n\n" TOOL_EXIT_CODES_HELP,
            TOOL);
+}
+
+enum { W_PRIMARY = 1, W_SHADOW = 2, W_AO = 4, W_DIFFUSE = 8 };
+
+typedef struct run_result {
+    const char *name;
+    size_t rays;
+    size_t hit;
+    as_trace_timing_t timing;
+} run_result;
+
+static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                     const as_trace_args_t *base, bool any_hit, run_result *out)
+{
+    as_trace_args_t args = *base;
+    args.any_hit = any_hit;
+    out->name = name;
+    out->rays = count;
+    if (as_trace(s, rays, count, hits, &args, &out->timing) != AS_OK) return tool_fail(TOOL);
+    out->hit = 0;
+    for (size_t i = 0; i < count; ++i) out->hit += hits[i].prim != AS_NO_HIT;
+    return EXIT_OK;
+}
+
+static double mrays(const run_result *r)
+{
+    return r->timing.trace_ms > 0 ? (double)r->rays / (r->timing.trace_ms * 1e3) : 0.0;
+}
+
+static void print_text(const run_result *r, bool any_hit)
+{
+    const as_trace_timing_t *t = &r->timing;
+    printf("%-9s %10zu rays (%s), %zu hit: %.3f ms", r->name, r->rays, any_hit ? "any hit" : "closest hit", r->hit,
+           t->trace_ms);
+    if (t->device == AS_DEVICE_GPU && t->timed_runs)
+        printf(" (median of %u, %.3f..%.3f)", t->timed_runs, t->trace_ms_min, t->trace_ms_max);
+    printf(", %.2f Mrays/s\n", mrays(r));
+    if (t->have_stats)
+        printf("%-9s steps per ray %.2f (max %u), triangle tests per ray %.2f (max %u)\n", "", t->steps_avg,
+               t->steps_max, t->tests_avg, t->tests_max);
+}
+
+static void print_json(const run_result *r, bool any_hit, bool last)
+{
+    const as_trace_timing_t *t = &r->timing;
+    printf("    {\"workload\": \"%s\", \"rays\": %zu, \"query\": \"%s\", \"hit\": %zu, \"trace_ms\": %.6f, "
+           "\"runs\": %u, \"trace_ms_min\": %.6f, \"trace_ms_max\": %.6f, \"mrays_per_s\": %.3f",
+           r->name, r->rays, any_hit ? "any" : "closest", r->hit, t->trace_ms, t->timed_runs, t->trace_ms_min,
+           t->trace_ms_max, mrays(r));
+    if (t->have_stats)
+        printf(", \"steps_avg\": %.4f, \"steps_max\": %u, \"tests_avg\": %.4f, \"tests_max\": %u", t->steps_avg,
+               t->steps_max, t->tests_avg, t->tests_max);
+    printf("}%s\n", last ? "" : ",");
 }
 
 int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
-           OPT_NO_CHECKSUM };
+           OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
+           OPT_STATS };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
+        {"workload", required_argument, 0, 'w'},
         {"eye", required_argument, 0, OPT_EYE},
         {"target", required_argument, 0, OPT_TARGET},
         {"up", required_argument, 0, OPT_UP},
         {"fov", required_argument, 0, OPT_FOV},
         {"width", required_argument, 0, 'W'},
         {"height", required_argument, 0, 'H'},
+        {"light", required_argument, 0, OPT_LIGHT},
+        {"ao-rays", required_argument, 0, OPT_AO_RAYS},
+        {"ao-radius", required_argument, 0, OPT_AO_RADIUS},
+        {"diffuse-rays", required_argument, 0, OPT_DIFFUSE_RAYS},
         {"rays", required_argument, 0, OPT_RAYS},
         {"hits-out", required_argument, 0, OPT_HITS},
         {"image", required_argument, 0, 'i'},
         {"any-hit", no_argument, 0, OPT_ANY},
         {"runs", required_argument, 0, OPT_RUNS},
+        {"schedule", required_argument, 0, OPT_SCHEDULE},
+        {"batch", required_argument, 0, OPT_BATCH},
+        {"stats", no_argument, 0, OPT_STATS},
         {"threads", required_argument, 0, OPT_THREADS},
+        {"format", required_argument, 0, 'f'},
         {"no-checksum", no_argument, 0, OPT_NO_CHECKSUM},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
@@ -63,20 +140,30 @@ int main(int argc, char **argv)
     };
     as_trace_args_t targs;
     as_trace_args_default(&targs);
+    targs.timed_runs = 10;
     as_load_args_t load;
     as_load_args_default(&load);
-    float eye[3], target[3], up[3] = {0, 1, 0}, fov = 45.0f;
-    int have_eye = 0, have_target = 0, have_fov = 0, c;
-    unsigned width = 1024, height = 768, u;
+    float eye[3], target[3], up[3] = {0, 1, 0}, fov = 45.0f, lights[3 * 16], ao_radius = 0.1f;
+    unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4;
+    int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, c;
+    unsigned width = 1920, height = 1080, u;
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL;
     opterr = 0;
-    while ((c = getopt_long(argc, argv, "d:W:H:i:hV", opts, NULL)) != -1) {
+    while ((c = getopt_long(argc, argv, "d:w:W:H:i:f:hV", opts, NULL)) != -1) {
         switch (c) {
         case 'd':
             if (strcmp(optarg, "cpu") == 0) targs.device = AS_DEVICE_CPU;
             else if (strcmp(optarg, "gpu") == 0) targs.device = AS_DEVICE_GPU;
             else if (strcmp(optarg, "auto") == 0) targs.device = AS_DEVICE_AUTO;
             else return tool_usage_error(TOOL, "unknown device '%s' (known: auto, cpu, gpu)", optarg);
+            break;
+        case 'w':
+            if (strcmp(optarg, "primary") == 0) workloads = W_PRIMARY;
+            else if (strcmp(optarg, "shadow") == 0) workloads = W_PRIMARY | W_SHADOW;
+            else if (strcmp(optarg, "ao") == 0) workloads = W_PRIMARY | W_AO;
+            else if (strcmp(optarg, "diffuse") == 0) workloads = W_PRIMARY | W_DIFFUSE;
+            else if (strcmp(optarg, "all") == 0) workloads = W_PRIMARY | W_SHADOW | W_AO | W_DIFFUSE;
+            else return tool_usage_error(TOOL, "unknown workload '%s' (known: primary, shadow, ao, diffuse, all)", optarg);
             break;
         case OPT_EYE: if (!tool_parse_vec3(optarg, eye)) return tool_usage_error(TOOL, "--eye needs X,Y,Z, got '%s'", optarg); have_eye = 1; break;
         case OPT_TARGET: if (!tool_parse_vec3(optarg, target)) return tool_usage_error(TOOL, "--target needs X,Y,Z, got '%s'", optarg); have_target = 1; break;
@@ -87,12 +174,32 @@ int main(int argc, char **argv)
             break;
         case 'W': if (!tool_parse_u32(optarg, &width) || !width || width > 32768) return tool_usage_error(TOOL, "--width needs 1..32768, got '%s'", optarg); break;
         case 'H': if (!tool_parse_u32(optarg, &height) || !height || height > 32768) return tool_usage_error(TOOL, "--height needs 1..32768, got '%s'", optarg); break;
+        case OPT_LIGHT:
+            if (light_count == 16) return tool_usage_error(TOOL, "at most 16 lights");
+            if (!tool_parse_vec3(optarg, lights + 3 * light_count)) return tool_usage_error(TOOL, "--light needs X,Y,Z, got '%s'", optarg);
+            ++light_count;
+            break;
+        case OPT_AO_RAYS: if (!tool_parse_u32(optarg, &ao_rays) || !ao_rays || ao_rays > 1024) return tool_usage_error(TOOL, "--ao-rays needs 1..1024, got '%s'", optarg); break;
+        case OPT_AO_RADIUS: if (!tool_parse_float(optarg, &ao_radius) || ao_radius <= 0) return tool_usage_error(TOOL, "--ao-radius needs a number > 0, got '%s'", optarg); break;
+        case OPT_DIFFUSE_RAYS: if (!tool_parse_u32(optarg, &diffuse_rays) || !diffuse_rays || diffuse_rays > 1024) return tool_usage_error(TOOL, "--diffuse-rays needs 1..1024, got '%s'", optarg); break;
         case OPT_RAYS: rays_path = optarg; break;
         case OPT_HITS: hits_path = optarg; break;
         case 'i': image_path = optarg; break;
-        case OPT_ANY: targs.any_hit = true; break;
-        case OPT_RUNS: if (!tool_parse_u32(optarg, &u) || !u) return tool_usage_error(TOOL, "--runs needs a positive integer, got '%s'", optarg); targs.timed_runs = u; break;
+        case OPT_ANY: any_hit = 1; break;
+        case OPT_RUNS: if (!tool_parse_u32(optarg, &u) || !u || u > 1000) return tool_usage_error(TOOL, "--runs needs 1..1000, got '%s'", optarg); targs.timed_runs = u; break;
+        case OPT_SCHEDULE:
+            if (strcmp(optarg, "persistent") == 0) targs.schedule = AS_SCHEDULE_PERSISTENT;
+            else if (strcmp(optarg, "thread") == 0) targs.schedule = AS_SCHEDULE_THREAD_PER_RAY;
+            else return tool_usage_error(TOOL, "unknown schedule '%s' (known: persistent, thread)", optarg);
+            break;
+        case OPT_BATCH: if (!tool_parse_u32(optarg, &u) || u < 1 || u > 4096) return tool_usage_error(TOOL, "--batch needs 1..4096, got '%s'", optarg); targs.batch = u; break;
+        case OPT_STATS: targs.collect_stats = true; break;
         case OPT_THREADS: if (!tool_parse_u32(optarg, &u)) return tool_usage_error(TOOL, "--threads needs an integer, got '%s'", optarg); targs.thread_count = u; break;
+        case 'f':
+            if (strcmp(optarg, "json") == 0) json = 1;
+            else if (strcmp(optarg, "text") == 0) json = 0;
+            else return tool_usage_error(TOOL, "unknown format '%s' (known: text, json)", optarg);
+            break;
         case OPT_NO_CHECKSUM: load.verify_checksums = false; break;
         case 'h': usage(); return EXIT_OK;
         case 'V': tool_print_version(TOOL); return EXIT_OK;
@@ -100,63 +207,147 @@ int main(int argc, char **argv)
         }
     }
     if (optind != argc - 1) return tool_usage_error(TOOL, "expected one .asf file, got %d", argc - optind);
-    if (rays_path && image_path) return tool_usage_error(TOOL, "--image needs camera rays; it cannot be used with --rays");
+    if (rays_path && (image_path || workloads != W_PRIMARY))
+        return tool_usage_error(TOOL, "--rays traces the file's rays: it cannot be used with --image or --workload");
     if (have_eye != have_target) return tool_usage_error(TOOL, "--eye and --target go together");
     const char *path = argv[optind];
 
     as_structure_t *s = as_structure_load(path, &load);
     if (!s) return tool_fail(TOOL);
     int code = EXIT_OK;
-    as_ray_t *rays = NULL;
-    as_hit_t *hits = NULL;
-    size_t count = 0;
+    as_ray_t *rays = NULL, *sec = NULL;
+    as_hit_t *hits = NULL, *sec_hits = NULL, *pixels = NULL;
+    uint32_t *pixel_of_ray = NULL, *sec_from = NULL;
+    float *ao = NULL;
+    size_t count = 0, nres = 0;
+    run_result res[4];
+    as_camera_t cam;
+    as_structure_stats_t st;
     /* Always: a kernel must never read a file that could send it out of
      * bounds, and validation costs one linear pass. */
-    if (as_structure_validate(s) != AS_OK) { code = tool_fail(TOOL); goto done; }
+    if (as_structure_validate(s) != AS_OK || as_structure_get_stats(s, &st) != AS_OK) { code = tool_fail(TOOL); goto done; }
     if (rays_path) {
         if (as_rays_read(rays_path, &rays, &count) != AS_OK) { code = tool_fail(TOOL); goto done; }
     } else {
-        as_structure_stats_t st;
-        if (as_structure_get_stats(s, &st) != AS_OK) { code = tool_fail(TOOL); goto done; }
-        as_camera_t cam;
         as_camera_default(st.bounds_lo, st.bounds_hi, &cam);
         if (have_eye) { memcpy(cam.eye, eye, sizeof eye); memcpy(cam.target, target, sizeof target); }
         memcpy(cam.up, up, sizeof up);
         if (have_fov) cam.fov_y_degrees = fov;
         count = (size_t)width * height;
         rays = malloc(sizeof *rays * count);
-        if (!rays) { fprintf(stderr, "%s: error: out of memory for %zu rays\n", TOOL, count); code = EXIT_RUNTIME; goto done; }
-        as_camera_rays(&cam, width, height, rays);
-        printf("camera:      eye %g,%g,%g target %g,%g,%g up %g,%g,%g fov %g, %ux%u\n", (double)cam.eye[0],
-               (double)cam.eye[1], (double)cam.eye[2], (double)cam.target[0], (double)cam.target[1],
-               (double)cam.target[2], (double)cam.up[0], (double)cam.up[1], (double)cam.up[2],
-               (double)cam.fov_y_degrees, width, height);
+        pixel_of_ray = malloc(sizeof *pixel_of_ray * count);
+        if (!rays || !pixel_of_ray) { fprintf(stderr, "%s: error: out of memory for %zu rays\n", TOOL, count); code = EXIT_RUNTIME; goto done; }
+        as_camera_rays_tiled(&cam, width, height, rays, pixel_of_ray);
     }
     hits = malloc(sizeof *hits * (count ? count : 1));
     if (!hits) { fprintf(stderr, "%s: error: out of memory for %zu hits\n", TOOL, count); code = EXIT_RUNTIME; goto done; }
-    as_trace_timing_t timing;
-    if (as_trace(s, rays, count, hits, &targs, &timing) != AS_OK) { code = tool_fail(TOOL); goto done; }
-    size_t nhit = 0;
-    for (size_t i = 0; i < count; ++i) nhit += hits[i].prim != AS_NO_HIT;
-    printf("device:      %s %s\n", timing.device == AS_DEVICE_GPU ? "gpu" : "cpu", timing.device_name);
-    printf("rays:        %zu (%s), %zu hit\n", count, targs.any_hit ? "any hit" : "closest hit", nhit);
-    if (timing.device == AS_DEVICE_GPU)
-        printf("upload:      %.3f ms for %llu bytes of structure\n", timing.upload_ms,
-               (unsigned long long)timing.upload_bytes);
-    printf("trace:       %.3f ms (%s)\n", timing.trace_ms,
-           timing.device == AS_DEVICE_GPU ? "median of device-event timed launches" : "wall clock");
-    printf("Mrays/s:     %.2f\n", timing.trace_ms > 0 ? (double)count / (timing.trace_ms * 1e3) : 0.0);
+    if ((code = trace_one(rays_path ? "file" : "primary", s, rays, count, hits, &targs, rays_path && any_hit, &res[nres++])))
+        goto done;
+
+    if (!rays_path && light_count == 0 && (workloads & W_SHADOW)) {
+        as_lights_default(st.bounds_lo, st.bounds_hi, lights);
+        light_count = 4;
+    }
+    for (int w = W_SHADOW; w <= W_DIFFUSE; w <<= 1) {
+        if (!(workloads & w)) continue;
+        size_t n = 0;
+        free(sec);
+        free(sec_hits);
+        free(sec_from);
+        sec = NULL; sec_hits = NULL; sec_from = NULL;
+        as_error_t e;
+        if (w == W_SHADOW) {
+            e = as_rays_shadow(s, rays, hits, count, lights, light_count, 1e-4f, &sec, &n, &sec_from);
+        } else {
+            as_secondary_args_t sa;
+            as_secondary_args_default(&sa);
+            sa.rays_per_hit = w == W_AO ? ao_rays : diffuse_rays;
+            sa.tmax_fraction = w == W_AO ? ao_radius : 0.0f;
+            sa.seed = w == W_AO ? 1 : 2;
+            e = as_rays_hemisphere(s, rays, hits, count, &sa, &sec, &n, &sec_from);
+        }
+        if (e != AS_OK) { code = tool_fail(TOOL); goto done; }
+        sec_hits = malloc(sizeof *sec_hits * (n ? n : 1));
+        if (!sec_hits) { fprintf(stderr, "%s: error: out of memory for %zu hits\n", TOOL, n); code = EXIT_RUNTIME; goto done; }
+        const char *name = w == W_SHADOW ? "shadow" : w == W_AO ? "ao" : "diffuse";
+        if ((code = trace_one(name, s, sec, n, sec_hits, &targs, w != W_DIFFUSE, &res[nres++]))) goto done;
+        if (w == W_AO && image_path) {
+            /* Per pixel: the fraction of AO rays that escape. */
+            ao = calloc((size_t)width * height, sizeof *ao);
+            float *total = calloc((size_t)width * height, sizeof *total);
+            if (!ao || !total) { free(total); fprintf(stderr, "%s: error: out of memory\n", TOOL); code = EXIT_RUNTIME; goto done; }
+            for (size_t i = 0; i < n; ++i) {
+                const uint32_t p = pixel_of_ray[sec_from[i]];
+                total[p] += 1.0f;
+                ao[p] += sec_hits[i].prim == AS_NO_HIT ? 1.0f : 0.0f;
+            }
+            for (size_t p = 0; p < (size_t)width * height; ++p) ao[p] = total[p] > 0 ? ao[p] / total[p] : -1.0f;
+            free(total);
+        }
+    }
+
+    if (json) {
+        printf("{\n  \"file\": ");
+        tool_print_json_string(path);
+        printf(",\n  \"device\": \"%s\",\n  \"device_name\": ", res[0].timing.device == AS_DEVICE_GPU ? "gpu" : "cpu");
+        tool_print_json_string(res[0].timing.device_name);
+        printf(",\n");
+        printf("  \"upload_ms\": %.6f,\n  \"upload_bytes\": %llu,\n  \"workloads\": [\n", res[0].timing.upload_ms,
+               (unsigned long long)res[0].timing.upload_bytes);
+        for (size_t i = 0; i < nres; ++i) print_json(&res[i], i == 0 ? (rays_path && any_hit) : strcmp(res[i].name, "diffuse") != 0, i + 1 == nres);
+        printf("  ]\n}\n");
+    } else {
+        if (!rays_path)
+            printf("camera:    eye %g,%g,%g target %g,%g,%g up %g,%g,%g fov %g, %ux%u\n", (double)cam.eye[0],
+                   (double)cam.eye[1], (double)cam.eye[2], (double)cam.target[0], (double)cam.target[1],
+                   (double)cam.target[2], (double)cam.up[0], (double)cam.up[1], (double)cam.up[2],
+                   (double)cam.fov_y_degrees, width, height);
+        printf("device:    %s %s\n", res[0].timing.device == AS_DEVICE_GPU ? "gpu" : "cpu", res[0].timing.device_name);
+        if (res[0].timing.device == AS_DEVICE_GPU)
+            printf("upload:    %.3f ms for %llu bytes of structure\n", res[0].timing.upload_ms,
+                   (unsigned long long)res[0].timing.upload_bytes);
+        for (size_t i = 0; i < nres; ++i)
+            print_text(&res[i], i == 0 ? (rays_path && any_hit) : strcmp(res[i].name, "diffuse") != 0);
+        printf("Mrays/s:   %.2f (%s)\n", mrays(&res[0]), res[0].name);
+    }
     if (hits_path) {
-        if (as_hits_write(hits_path, hits, count) != AS_OK) { code = tool_fail(TOOL); goto done; }
-        printf("hits:        %s\n", hits_path);
+        /* Hits in the order of the rays: the file's, or row-major pixels. */
+        const as_hit_t *outh = hits;
+        if (pixel_of_ray) {
+            pixels = malloc(sizeof *pixels * count);
+            if (!pixels) { fprintf(stderr, "%s: error: out of memory\n", TOOL); code = EXIT_RUNTIME; goto done; }
+            for (size_t i = 0; i < count; ++i) pixels[pixel_of_ray[i]] = hits[i];
+            outh = pixels;
+        }
+        if (as_hits_write(hits_path, outh, count) != AS_OK) { code = tool_fail(TOOL); goto done; }
+        if (!json) printf("hits:      %s\n", hits_path);
     }
     if (image_path) {
-        if (as_image_write_png(s, rays, hits, width, height, image_path) != AS_OK) { code = tool_fail(TOOL); goto done; }
-        printf("image:       %s\n", image_path);
+        as_error_t e;
+        if (ao) {
+            e = as_image_write_png_grey(image_path, width, height, ao);
+        } else {
+            /* Back to row-major order for the image. */
+            as_ray_t *prow = malloc(sizeof *prow * count);
+            as_hit_t *hrow = malloc(sizeof *hrow * count);
+            if (!prow || !hrow) { free(prow); free(hrow); fprintf(stderr, "%s: error: out of memory\n", TOOL); code = EXIT_RUNTIME; goto done; }
+            for (size_t i = 0; i < count; ++i) { prow[pixel_of_ray[i]] = rays[i]; hrow[pixel_of_ray[i]] = hits[i]; }
+            e = as_image_write_png(s, prow, hrow, width, height, image_path);
+            free(prow);
+            free(hrow);
+        }
+        if (e != AS_OK) { code = tool_fail(TOOL); goto done; }
+        if (!json) printf("image:     %s\n", image_path);
     }
 done:
     free(rays);
     free(hits);
+    free(sec);
+    free(sec_hits);
+    free(sec_from);
+    free(pixels);
+    free(pixel_of_ray);
+    free(ao);
     as_structure_release(s);
     return code;
 }

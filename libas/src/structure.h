@@ -34,6 +34,12 @@ const as_section_t *as_structure_find(const as_structure_t *s, uint32_t tag);
 void as_structure_add_section(as_structure_t *s, uint32_t tag, void *data, uint64_t count,
                               uint32_t stride);
 
+/* For each source triangle index, its vertices in the structure (TRIS in
+ * source order, or TRI4 in leaf order inverted); NULL where the structure
+ * has none (zero-area triangles). malloc'd; the caller frees it. */
+struct as_tri4;
+const struct as_tri4 **as_structure_triangles_by_prim(const as_structure_t *s);
+
 /* 64-byte aligned allocation for section data; free with free(). */
 void *as_aligned_alloc(size_t bytes, const char *what);
 
@@ -41,6 +47,8 @@ void *as_aligned_alloc(size_t bytes, const char *what);
  * describe and trace it. One table per layout, in the layout's own file
  * (bvh2_layout_ops.c, ...); adding a structure adds a table to as_layouts. */
 #define AS_LAYOUT_MAX_SECTIONS 6
+
+struct as_gpu_launch; /* kernels/trace_gpu.h */
 
 typedef struct as_layout_section {
     uint32_t tag;
@@ -68,7 +76,7 @@ typedef struct as_layout_ops {
     as_error_t (*convert)(const as_structure_t *src, uint32_t target, as_structure_t *dst);
     /* The CUDA back end, or NULL where this build has none. */
     as_error_t (*trace_gpu)(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
-                            int any_hit, unsigned timed_runs, as_trace_timing_t *timing);
+                            const struct as_gpu_launch *launch, as_trace_timing_t *timing);
 } as_layout_ops_t;
 
 /* The table for a kind and layout, or NULL when this build has none. */

@@ -10,6 +10,7 @@ void as_trace_args_default(as_trace_args_t *args)
     args->size = sizeof *args;
     args->device = AS_DEVICE_AUTO;
     args->timed_runs = 5;
+    args->batch = 32;
 }
 
 bool as_gpu_available(void)
@@ -38,5 +39,12 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
         return as_set_error(AS_ERROR_NO_DEVICE, "this build of libas has no CUDA back end for the %s layout",
                             ops->layout_name);
     if (!as_gpu_available()) return as_set_error(AS_ERROR_NO_DEVICE, "no usable CUDA device (use the CPU back end)");
-    return ops->trace_gpu(s, rays, count, hits, args.any_hit, args.timed_runs ? args.timed_runs : 1, timing);
+    const as_gpu_launch_t launch = {
+        args.any_hit,
+        args.timed_runs ? args.timed_runs : 1,
+        args.schedule != AS_SCHEDULE_THREAD_PER_RAY,
+        args.batch ? args.batch : 32,
+        args.collect_stats,
+    };
+    return ops->trace_gpu(s, rays, count, hits, &launch, timing);
 }

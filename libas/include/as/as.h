@@ -321,12 +321,23 @@ typedef enum as_device {
     AS_DEVICE_GPU = 2
 } as_device_t;
 
+typedef enum as_schedule {
+    AS_SCHEDULE_AUTO = 0,        /* the fastest measured: persistent threads */
+    AS_SCHEDULE_THREAD_PER_RAY = 1,
+    AS_SCHEDULE_PERSISTENT = 2   /* persistent threads fetching a batch of rays per atomic */
+} as_schedule_t;
+
 typedef struct as_trace_args {
     size_t size;
     as_device_t device;
     uint32_t thread_count;       /* CPU: 0 = every core */
     bool any_hit;                /* stop at the first hit (shadow rays) */
     uint32_t timed_runs;         /* GPU: launches to time, median reported; default 5 */
+    as_schedule_t schedule;      /* GPU */
+    uint32_t batch;              /* GPU persistent threads: rays per atomic (default 32) */
+    bool collect_stats;          /* also count steps and triangle tests per ray, in a
+                                    separate pass (GPU: a separately compiled kernel)
+                                    so the timed pass does not pay for counting */
 } as_trace_args_t;
 void as_trace_args_default(as_trace_args_t *args);
 
@@ -337,6 +348,13 @@ typedef struct as_trace_timing {
     double upload_ms;            /* GPU: structure and rays to the device */
     uint64_t upload_bytes;
     char device_name[128];
+    uint32_t timed_runs;         /* launches behind trace_ms */
+    double trace_ms_min, trace_ms_max;
+    /* With collect_stats: traversal steps (nodes visited, leaves included)
+     * and ray/triangle tests per ray. */
+    bool have_stats;
+    double steps_avg, tests_avg;
+    uint32_t steps_max, tests_max;
 } as_trace_timing_t;
 
 /* Traces `count` rays. `timing` may be NULL. */
@@ -375,12 +393,56 @@ void as_camera_default(const float bounds_lo[3], const float bounds_hi[3], as_ca
  * tmax infinity. `rays` has width * height entries. */
 void as_camera_rays(const as_camera_t *cam, uint32_t width, uint32_t height, as_ray_t *rays);
 
+/* The same rays in the order the GPU likes: 16 x 32 pixel tiles along a
+ * Morton curve, row-major inside a tile. pixel_of_ray[i] (if not NULL) is
+ * the row-major pixel index of ray i. */
+void as_camera_rays_tiled(const as_camera_t *cam, uint32_t width, uint32_t height, as_ray_t *rays,
+                          uint32_t *pixel_of_ray);
+
+/* ------------------------------------------------------------------------ */
+/* Workloads: secondary rays from primary hits                              */
+
+typedef struct as_secondary_args {
+    size_t size;
+    uint32_t rays_per_hit;       /* AO default 16, diffuse 4 */
+    float tmax_fraction;         /* tmax as a fraction of the scene diagonal
+                                    (AO default 0.1); 0: unbounded */
+    float offset_fraction;       /* origin offset along the geometric normal,
+                                    flipped to face the incoming ray, as a
+                                    fraction of the diagonal (default 1e-4) */
+    uint64_t seed;
+} as_secondary_args_t;
+void as_secondary_args_default(as_secondary_args_t *args);
+
+/* Cosine-weighted hemisphere rays from every primary hit (AO: any hit within
+ * tmax; diffuse: closest hit, unbounded). *out is malloc'd; (*origin)[i]
+ * (if origin is not NULL) is the primary ray that ray i comes from. */
+as_error_t as_rays_hemisphere(const as_structure_t *s, const as_ray_t *primary, const as_hit_t *hits,
+                              size_t count, const as_secondary_args_t *args, as_ray_t **out,
+                              size_t *out_count, uint32_t **origin);
+
+/* Shadow rays from every primary hit towards each light (a point), ending
+ * just short of it. */
+as_error_t as_rays_shadow(const as_structure_t *s, const as_ray_t *primary, const as_hit_t *hits,
+                          size_t count, const float *lights, uint32_t light_count,
+                          float offset_fraction, as_ray_t **out, size_t *out_count,
+                          uint32_t **origin);
+
+/* Four point lights from the scene box, at 90% of its height along y over
+ * the quarter points of its x and z extent, so shadows fall inside the
+ * scene (as-trace --light overrides them). `lights` holds 12 floats. */
+void as_lights_default(const float bounds_lo[3], const float bounds_hi[3], float lights[12]);
+
 /* Shades the hits of as_camera_rays as a grey image lit from the camera (the
  * absolute cosine between the ray and the geometric normal), background dark
  * blue, and writes it as an 8-bit RGB PNG (temporary file, then rename). */
 as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays,
                               const as_hit_t *hits, uint32_t width, uint32_t height,
                               const char *path);
+
+/* Writes grey values in [0, 1], row-major, as an 8-bit RGB PNG; a negative
+ * value is drawn as the background (dark blue). */
+as_error_t as_image_write_png_grey(const char *path, uint32_t width, uint32_t height, const float *values);
 
 #ifdef __cplusplus
 }
