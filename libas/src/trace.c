@@ -42,7 +42,7 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
     const as_gpu_launch_t launch = {
         args.any_hit,
         args.timed_runs ? args.timed_runs : 1,
-        args.schedule != AS_SCHEDULE_THREAD_PER_RAY,
+        args.schedule == AS_SCHEDULE_PERSISTENT,
         args.batch ? args.batch : 32,
         args.collect_stats,
     };

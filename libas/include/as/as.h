@@ -322,7 +322,8 @@ typedef enum as_device {
 } as_device_t;
 
 typedef enum as_schedule {
-    AS_SCHEDULE_AUTO = 0,        /* the fastest measured: persistent threads */
+    AS_SCHEDULE_AUTO = 0,        /* the fastest measured on the H100: one thread per ray
+                                    (docs/results/2026-11-22-workloads-sanmiguel-h100.md) */
     AS_SCHEDULE_THREAD_PER_RAY = 1,
     AS_SCHEDULE_PERSISTENT = 2   /* persistent threads fetching a batch of rays per atomic */
 } as_schedule_t;
