@@ -40,6 +40,10 @@ static void usage(void)
            "      --schedule NAME        GPU: thread (one per ray, default: measured fastest)\n"
            "                             or persistent (warps fetch --batch rays per atomic)\n"
            "      --batch N              GPU persistent threads: rays per atomic (default 32)\n"
+           "      --verify[=N]           check N sampled rays of each workload (default\n"
+           "                             100000) against a double-precision reference and\n"
+           "                             report wrong primitives, false misses, false hits\n"
+           "                             and the largest relative t error\n"
            "      --stats                also count steps and triangle tests per ray (GPU, in\n"
            "                             a separate launch of a counting kernel)\n"
            "      --threads N            CPU threads (default: every core)\n"
@@ -60,7 +64,11 @@ typedef struct run_result {
     size_t rays;
     size_t hit;
     as_trace_timing_t timing;
+    bool verified;
+    as_verify_result_t verify;
 } run_result;
+
+static size_t verify_samples; /* 0: no verification */
 
 static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                      const as_trace_args_t *base, bool any_hit, run_result *out)
@@ -72,6 +80,15 @@ static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *
     if (as_trace(s, rays, count, hits, &args, &out->timing) != AS_OK) return tool_fail(TOOL);
     out->hit = 0;
     for (size_t i = 0; i < count; ++i) out->hit += hits[i].prim != AS_NO_HIT;
+    out->verified = false;
+    if (verify_samples) {
+        as_verify_args_t va;
+        as_verify_args_default(&va);
+        va.sample_count = verify_samples;
+        va.thread_count = base->thread_count;
+        if (as_verify(s, rays, hits, count, any_hit, &va, &out->verify) != AS_OK) return tool_fail(TOOL);
+        out->verified = true;
+    }
     return EXIT_OK;
 }
 
@@ -91,6 +108,12 @@ static void print_text(const run_result *r, bool any_hit)
     if (t->have_stats)
         printf("%-9s steps per ray %.2f (max %u), triangle tests per ray %.2f (max %u)\n", "", t->steps_avg,
                t->steps_max, t->tests_avg, t->tests_max);
+    if (r->verified)
+        printf("%-9s verified %llu rays: %llu wrong primitive, %llu false miss, %llu false hit; max t error %.2e "
+               "relative, %.2e of the diagonal (%.0f ms)\n",
+               "", (unsigned long long)r->verify.checked, (unsigned long long)r->verify.wrong_primitive,
+               (unsigned long long)r->verify.false_misses, (unsigned long long)r->verify.false_hits,
+               r->verify.max_t_error, r->verify.max_t_error_abs, r->verify.verify_ms);
 }
 
 static void print_json(const run_result *r, bool any_hit, bool last)
@@ -103,6 +126,13 @@ static void print_json(const run_result *r, bool any_hit, bool last)
     if (t->have_stats)
         printf(", \"steps_avg\": %.4f, \"steps_max\": %u, \"tests_avg\": %.4f, \"tests_max\": %u", t->steps_avg,
                t->steps_max, t->tests_avg, t->tests_max);
+    if (r->verified)
+        printf(", \"verified\": %llu, \"wrong_primitive\": %llu, \"false_misses\": %llu, \"false_hits\": %llu, "
+               "\"mismatch_ppm\": %.3f, \"max_t_error\": %.3e, \"max_t_error_diagonal\": %.3e",
+               (unsigned long long)r->verify.checked, (unsigned long long)r->verify.wrong_primitive,
+               (unsigned long long)r->verify.false_misses, (unsigned long long)r->verify.false_hits,
+               r->verify.checked ? 1e6 * (double)(r->verify.wrong_primitive + r->verify.false_misses + r->verify.false_hits) / (double)r->verify.checked : 0.0,
+               r->verify.max_t_error, r->verify.max_t_error_abs);
     printf("}%s\n", last ? "" : ",");
 }
 
@@ -110,7 +140,7 @@ int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
-           OPT_STATS };
+           OPT_STATS, OPT_VERIFY };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -132,6 +162,7 @@ int main(int argc, char **argv)
         {"schedule", required_argument, 0, OPT_SCHEDULE},
         {"batch", required_argument, 0, OPT_BATCH},
         {"stats", no_argument, 0, OPT_STATS},
+        {"verify", optional_argument, 0, OPT_VERIFY},
         {"threads", required_argument, 0, OPT_THREADS},
         {"format", required_argument, 0, 'f'},
         {"no-checksum", no_argument, 0, OPT_NO_CHECKSUM},
@@ -195,6 +226,11 @@ int main(int argc, char **argv)
             break;
         case OPT_BATCH: if (!tool_parse_u32(optarg, &u) || u < 1 || u > 4096) return tool_usage_error(TOOL, "--batch needs 1..4096, got '%s'", optarg); targs.batch = u; break;
         case OPT_STATS: targs.collect_stats = true; break;
+        case OPT_VERIFY:
+            verify_samples = 100000;
+            if (optarg && (!tool_parse_u32(optarg, &u) || !u)) return tool_usage_error(TOOL, "--verify needs a positive count, got '%s'", optarg);
+            if (optarg) verify_samples = u;
+            break;
         case OPT_THREADS: if (!tool_parse_u32(optarg, &u)) return tool_usage_error(TOOL, "--threads needs an integer, got '%s'", optarg); targs.thread_count = u; break;
         case 'f':
             if (strcmp(optarg, "json") == 0) json = 1;

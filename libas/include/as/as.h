@@ -362,6 +362,35 @@ typedef struct as_trace_timing {
 as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
                     as_hit_t *hits, const as_trace_args_t *args, as_trace_timing_t *timing);
 
+/* Verification against a double-precision reference: the watertight test
+ * in double over a conservatively traversed BVH of the structure's own
+ * triangles. A hit agrees when it is the reference's primitive or a tie (a
+ * primitive hit within 1e-6 of the scene diagonal of the reference's t);
+ * any-hit results agree when they hit exactly when the reference does, on a
+ * triangle the ray really meets. */
+typedef struct as_verify_args {
+    size_t size;
+    size_t sample_count;         /* rays checked, spread over all (default 100,000; 0: all) */
+    uint64_t seed;               /* which rays are sampled */
+    uint32_t thread_count;       /* 0: every core */
+} as_verify_args_t;
+void as_verify_args_default(as_verify_args_t *args);
+
+typedef struct as_verify_result {
+    uint64_t checked;
+    uint64_t wrong_primitive;    /* hit, but neither the reference's triangle nor a tie */
+    uint64_t false_misses;       /* the reference hits, the trace missed */
+    uint64_t false_hits;         /* the reference misses, the trace hit */
+    double max_t_error;          /* largest |t - t_ref| / t_ref over agreeing closest hits
+                                    farther than 1e-3 of the scene diagonal */
+    double max_t_error_abs;      /* largest |t - t_ref| over all agreeing closest hits,
+                                    in units of the scene diagonal */
+    double verify_ms;
+} as_verify_result_t;
+
+as_error_t as_verify(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits, size_t count,
+                     bool any_hit, const as_verify_args_t *args, as_verify_result_t *result);
+
 /* True when this build has CUDA and a device is usable. */
 bool as_gpu_available(void);
 
