@@ -20,14 +20,32 @@ typedef struct as_gpu_launch {
     int collect_stats;           /* run the counting kernel too (not timed) */
 } as_gpu_launch_t;
 
-/* Uploads the BVH2 nodes, TRI4 triangles and rays, runs one warm-up launch
- * and `timed_runs` timed launches of the BVH2 kernel, and copies the hits
- * back. timing->trace_ms is the median of the timed launches (CUDA events
- * around the kernel alone). */
-as_error_t as_trace_gpu_bvh2(const void *nodes, uint64_t node_bytes, const void *tris,
-                             uint64_t tri_bytes, const as_ray_t *rays, size_t count,
-                             as_hit_t *hits, const as_gpu_launch_t *launch,
-                             as_trace_timing_t *timing);
+/* A structure's sections on the device (or mapped for it in place). */
+#define AS_GPU_MAX_SECTIONS 6
+typedef struct as_gpu_resident {
+    int section_count;
+    void *device[AS_GPU_MAX_SECTIONS];   /* device pointers, in the layout's section order */
+    uint64_t bytes[AS_GPU_MAX_SECTIONS];
+    const void *registered;              /* the registered host range (zero-copy, registered) */
+    as_upload_info_t info;
+} as_gpu_resident_t;
+
+/* Makes sections resident: copies them to device memory by `method`
+ * (pageable, pinned pipeline, registered), or with zero_copy registers the
+ * host range [map_base, map_base + map_size) that holds them and hands the
+ * kernels device pointers into it. */
+as_error_t as_gpu_upload(const void *const *sections, const uint64_t *bytes, int count, int zero_copy,
+                         int method, const void *map_base, uint64_t map_size, as_gpu_resident_t **out);
+void as_gpu_release(as_gpu_resident_t *g);
+/* Free device memory in bytes (0 when unknown). */
+uint64_t as_gpu_free_memory(void);
+
+/* Uploads the rays, runs one warm-up launch and `timed_runs` timed launches
+ * of the BVH2 kernel over resident sections (BVH2 nodes, TRI4), and copies
+ * the hits back. timing->trace_ms is the median of the timed launches (CUDA
+ * events around the kernel alone). */
+as_error_t as_trace_gpu_bvh2(const as_gpu_resident_t *g, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                             const as_gpu_launch_t *launch, as_trace_timing_t *timing);
 
 #ifdef __cplusplus
 }

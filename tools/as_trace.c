@@ -1,5 +1,6 @@
 /* as-trace: trace the study's workloads through a prebuilt .asf file, on the
  * GPU when there is one, else on every CPU core. */
+#define _POSIX_C_SOURCE 200809L
 #include "tool_common.h"
 
 #include <getopt.h>
@@ -7,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 static const char *TOOL = "as-trace";
 
@@ -46,6 +48,14 @@ static void usage(void)
            "                             and the largest relative t error\n"
            "      --stats                also count steps and triangle tests per ray (GPU, in\n"
            "                             a separate launch of a counting kernel)\n"
+           "      --residency NAME       GPU: auto (default: device memory when the structure\n"
+           "                             fits, else in place), device, or zero-copy (kernels\n"
+           "                             read the mapped file in place)\n"
+           "      --upload NAME          GPU: pipeline (default: threads copy the mapping into\n"
+           "                             pinned buffers uploaded asynchronously), pageable,\n"
+           "                             or registered\n"
+           "      --memory-limit BYTES   GPU: device memory the structure may take (default:\n"
+           "                             the free memory)\n"
            "      --threads N            CPU threads (default: every core)\n"
            "  -f, --format text|json     output format (default text)\n"
            "      --no-checksum          do not verify section checksums on load\n"
@@ -69,6 +79,13 @@ typedef struct run_result {
 } run_result;
 
 static size_t verify_samples; /* 0: no verification */
+
+static double as_now_ms_tool(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
 
 static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                      const as_trace_args_t *base, bool any_hit, run_result *out)
@@ -140,7 +157,7 @@ int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
-           OPT_STATS, OPT_VERIFY };
+           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -163,6 +180,9 @@ int main(int argc, char **argv)
         {"batch", required_argument, 0, OPT_BATCH},
         {"stats", no_argument, 0, OPT_STATS},
         {"verify", optional_argument, 0, OPT_VERIFY},
+        {"residency", required_argument, 0, OPT_RESIDENCY},
+        {"upload", required_argument, 0, OPT_UPLOAD},
+        {"memory-limit", required_argument, 0, OPT_MEMLIMIT},
         {"threads", required_argument, 0, OPT_THREADS},
         {"format", required_argument, 0, 'f'},
         {"no-checksum", no_argument, 0, OPT_NO_CHECKSUM},
@@ -226,6 +246,25 @@ int main(int argc, char **argv)
             break;
         case OPT_BATCH: if (!tool_parse_u32(optarg, &u) || u < 1 || u > 4096) return tool_usage_error(TOOL, "--batch needs 1..4096, got '%s'", optarg); targs.batch = u; break;
         case OPT_STATS: targs.collect_stats = true; break;
+        case OPT_RESIDENCY:
+            if (strcmp(optarg, "auto") == 0) targs.residency = AS_RESIDENCY_AUTO;
+            else if (strcmp(optarg, "device") == 0) targs.residency = AS_RESIDENCY_DEVICE;
+            else if (strcmp(optarg, "zero-copy") == 0) targs.residency = AS_RESIDENCY_ZERO_COPY;
+            else return tool_usage_error(TOOL, "unknown residency '%s' (known: auto, device, zero-copy)", optarg);
+            break;
+        case OPT_UPLOAD:
+            if (strcmp(optarg, "pipeline") == 0) targs.upload = AS_UPLOAD_PINNED_PIPELINE;
+            else if (strcmp(optarg, "pageable") == 0) targs.upload = AS_UPLOAD_PAGEABLE;
+            else if (strcmp(optarg, "registered") == 0) targs.upload = AS_UPLOAD_REGISTERED;
+            else return tool_usage_error(TOOL, "unknown upload method '%s' (known: pipeline, pageable, registered)", optarg);
+            break;
+        case OPT_MEMLIMIT: {
+            char *end;
+            const unsigned long long v = strtoull(optarg, &end, 10);
+            if (end == optarg || *end || v == 0) return tool_usage_error(TOOL, "--memory-limit needs a byte count, got '%s'", optarg);
+            targs.device_memory_limit = v;
+            break;
+        }
         case OPT_VERIFY:
             verify_samples = 100000;
             if (optarg && (!tool_parse_u32(optarg, &u) || !u)) return tool_usage_error(TOOL, "--verify needs a positive count, got '%s'", optarg);
@@ -249,8 +288,10 @@ int main(int argc, char **argv)
     if (have_eye != have_target) return tool_usage_error(TOOL, "--eye and --target go together");
     const char *path = argv[optind];
 
+    const double t_open = as_now_ms_tool();
     as_structure_t *s = as_structure_load(path, &load);
     if (!s) return tool_fail(TOOL);
+    const double t_loaded = as_now_ms_tool();
     int code = EXIT_OK;
     as_ray_t *rays = NULL, *sec = NULL;
     as_hit_t *hits = NULL, *sec_hits = NULL, *pixels = NULL;
@@ -263,6 +304,12 @@ int main(int argc, char **argv)
     /* Always: a kernel must never read a file that could send it out of
      * bounds, and validation costs one linear pass. */
     if (as_structure_validate(s) != AS_OK || as_structure_get_stats(s, &st) != AS_OK) { code = tool_fail(TOOL); goto done; }
+    const double t_validated = as_now_ms_tool();
+    as_upload_info_t upinfo;
+    memset(&upinfo, 0, sizeof upinfo);
+    const bool gpu = targs.device == AS_DEVICE_GPU || (targs.device == AS_DEVICE_AUTO && as_gpu_available());
+    if (gpu && as_structure_upload(s, &targs, &upinfo) != AS_OK) { code = tool_fail(TOOL); goto done; }
+    const double t_ready = as_now_ms_tool();
     if (rays_path) {
         if (as_rays_read(rays_path, &rays, &count) != AS_OK) { code = tool_fail(TOOL); goto done; }
     } else {
@@ -329,8 +376,10 @@ int main(int argc, char **argv)
         printf(",\n  \"device\": \"%s\",\n  \"device_name\": ", res[0].timing.device == AS_DEVICE_GPU ? "gpu" : "cpu");
         tool_print_json_string(res[0].timing.device_name);
         printf(",\n");
-        printf("  \"upload_ms\": %.6f,\n  \"upload_bytes\": %llu,\n  \"workloads\": [\n", res[0].timing.upload_ms,
-               (unsigned long long)res[0].timing.upload_bytes);
+        printf("  \"open_ms\": %.3f,\n  \"validate_ms\": %.3f,\n  \"upload_method\": \"%s\",\n  \"upload_ms\": %.3f,\n"
+               "  \"upload_bytes\": %llu,\n  \"upload_gb_per_s\": %.3f,\n  \"load_ms\": %.3f,\n  \"workloads\": [\n",
+               t_loaded - t_open, t_validated - t_loaded, gpu ? upinfo.method : "none", upinfo.upload_ms,
+               (unsigned long long)upinfo.bytes, upinfo.gb_per_s, t_ready - t_open);
         for (size_t i = 0; i < nres; ++i) print_json(&res[i], i == 0 ? (rays_path && any_hit) : strcmp(res[i].name, "diffuse") != 0, i + 1 == nres);
         printf("  ]\n}\n");
     } else {
@@ -340,9 +389,11 @@ int main(int argc, char **argv)
                    (double)cam.target[2], (double)cam.up[0], (double)cam.up[1], (double)cam.up[2],
                    (double)cam.fov_y_degrees, width, height);
         printf("device:    %s %s\n", res[0].timing.device == AS_DEVICE_GPU ? "gpu" : "cpu", res[0].timing.device_name);
-        if (res[0].timing.device == AS_DEVICE_GPU)
-            printf("upload:    %.3f ms for %llu bytes of structure\n", res[0].timing.upload_ms,
-                   (unsigned long long)res[0].timing.upload_bytes);
+        printf("load:      %.1f ms from open to ready (open and checks %.1f, validation %.1f", t_ready - t_open,
+               t_loaded - t_open, t_validated - t_loaded);
+        if (gpu)
+            printf(", %s %.1f: %llu bytes at %.2f GB/s", upinfo.method, upinfo.upload_ms, (unsigned long long)upinfo.bytes, upinfo.gb_per_s);
+        printf(")\n");
         for (size_t i = 0; i < nres; ++i)
             print_text(&res[i], i == 0 ? (rays_path && any_hit) : strcmp(res[i].name, "diffuse") != 0);
         printf("Mrays/s:   %.2f (%s)\n", mrays(&res[0]), res[0].name);

@@ -85,9 +85,9 @@ static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit
 static as_error_t bvh2_trace_gpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                                  const as_gpu_launch_t *launch, as_trace_timing_t *timing)
 {
-    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
-    if (ns->count == 0) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "BVH2 section has no root node");
-    return as_trace_gpu_bvh2(ns->data, ns->bytes, ts->data, ts->bytes, rays, count, hits, launch, timing);
+    if (as_structure_find(s, ASF_TAG_BVH2)->count == 0)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "BVH2 section has no root node");
+    return as_trace_gpu_bvh2(s->gpu, rays, count, hits, launch, timing);
 }
 #endif
 

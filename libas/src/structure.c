@@ -2,6 +2,7 @@
  * loading from .asf files, statistics and section listing. */
 #include "structure.h"
 #include "mesh.h"
+#include "trace_gpu.h"
 #include "bvh2_layout.h"
 
 #include <math.h>
@@ -167,6 +168,9 @@ as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t 
 void as_structure_release(as_structure_t *s)
 {
     if (!s) return;
+#ifdef AS_HAVE_CUDA
+    as_gpu_release(s->gpu);
+#endif
     for (uint32_t i = 0; i < s->section_count; ++i) free(s->sections[i].owned);
     asf_close(s->file);
     free(s);

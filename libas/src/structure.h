@@ -24,6 +24,7 @@ struct as_structure {
     as_section_t sections[AS_MAX_SECTIONS];
     uint32_t section_count;
     asf_file_t *file;             /* when loaded */
+    struct as_gpu_resident *gpu;  /* the sections on the GPU, after the first GPU use */
     double build_ms;              /* when built; files do not store it */
 };
 

@@ -328,6 +328,20 @@ typedef enum as_schedule {
     AS_SCHEDULE_PERSISTENT = 2   /* persistent threads fetching a batch of rays per atomic */
 } as_schedule_t;
 
+typedef enum as_residency {
+    AS_RESIDENCY_AUTO = 0,       /* device memory when the structure fits, else zero-copy */
+    AS_RESIDENCY_DEVICE = 1,     /* copy the sections to device memory */
+    AS_RESIDENCY_ZERO_COPY = 2   /* kernels read the mapped file in place (registered host memory) */
+} as_residency_t;
+
+typedef enum as_upload_method {
+    AS_UPLOAD_AUTO = 0,          /* the fastest measured */
+    AS_UPLOAD_PAGEABLE = 1,      /* cudaMemcpy straight from the mapping */
+    AS_UPLOAD_PINNED_PIPELINE = 2, /* threads copy the mapping into a ring of pinned
+                                    buffers, uploaded asynchronously */
+    AS_UPLOAD_REGISTERED = 3     /* cudaHostRegister the mapping, then copy */
+} as_upload_method_t;
+
 typedef struct as_trace_args {
     size_t size;
     as_device_t device;
@@ -339,6 +353,11 @@ typedef struct as_trace_args {
     bool collect_stats;          /* also count steps and triangle tests per ray, in a
                                     separate pass (GPU: a separately compiled kernel)
                                     so the timed pass does not pay for counting */
+    as_residency_t residency;    /* GPU: where the structure lives (first GPU trace) */
+    as_upload_method_t upload;   /* GPU: how sections reach device memory */
+    uint64_t device_memory_limit; /* GPU: bytes the structure may take in device
+                                    memory (0: the device's free memory); beyond
+                                    it AS_RESIDENCY_AUTO reads in place */
 } as_trace_args_t;
 void as_trace_args_default(as_trace_args_t *args);
 
@@ -357,6 +376,20 @@ typedef struct as_trace_timing {
     double steps_avg, tests_avg;
     uint32_t steps_max, tests_max;
 } as_trace_timing_t;
+
+/* What the first GPU use of a structure cost. */
+typedef struct as_upload_info {
+    bool zero_copy;              /* kernels read the mapped file in place */
+    const char *method;          /* "pageable", "pinned pipeline", "registered", "zero-copy" */
+    uint64_t bytes;              /* section bytes the traversal reads */
+    double upload_ms;            /* host to device, wall clock */
+    double gb_per_s;
+} as_upload_info_t;
+
+/* Makes the structure resident on the GPU now (the first GPU trace does it
+ * otherwise); later traces reuse it until the structure is released. Not
+ * thread-safe against concurrent traces of the same structure. */
+as_error_t as_structure_upload(const as_structure_t *s, const as_trace_args_t *args, as_upload_info_t *info);
 
 /* Traces `count` rays. `timing` may be NULL. */
 as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
