@@ -335,7 +335,7 @@ typedef enum as_residency {
 } as_residency_t;
 
 typedef enum as_upload_method {
-    AS_UPLOAD_AUTO = 0,          /* the fastest measured */
+    AS_UPLOAD_AUTO = 0,          /* the fastest measured: pageable on the H100 */
     AS_UPLOAD_PAGEABLE = 1,      /* cudaMemcpy straight from the mapping */
     AS_UPLOAD_PINNED_PIPELINE = 2, /* threads copy the mapping into a ring of pinned
                                     buffers, uploaded asynchronously */
