@@ -17,8 +17,11 @@ static void usage(void)
     printf("Usage: %s FILE.asf [options]\n"
            "Traces a workload through a structure file and reports the trace time alone.\n\n"
            "  -d, --device auto|cpu|gpu  where to trace (default: gpu when present, else cpu)\n"
-           "  -w, --workload NAME        primary (default), shadow, ao, diffuse, or all;\n"
-           "                             secondary rays start at the primary hits\n"
+           "  -w, --workload NAME        primary (default), shadow, ao, diffuse, whitted, or\n"
+           "                             all; secondary rays start at the primary hits.\n"
+           "                             whitted: reflections and refractions up to\n"
+           "                             --bounces (10), hard shadows at every hit; 10%% of\n"
+           "                             the triangles mirrors, 5%% glass (ior 1.5), seeded\n"
            "      --eye X,Y,Z            camera position\n"
            "      --target X,Y,Z         point the camera looks at\n"
            "      --up X,Y,Z             up vector (default 0,1,0)\n"
@@ -68,10 +71,12 @@ static void usage(void)
            TOOL);
 }
 
-enum { W_PRIMARY = 1, W_SHADOW = 2, W_AO = 4, W_DIFFUSE = 8 };
+enum { W_PRIMARY = 1, W_SHADOW = 2, W_AO = 4, W_DIFFUSE = 8, W_WHITTED = 16 };
+#define MAX_RESULTS 40
 
 typedef struct run_result {
-    const char *name;
+    char name[32];
+    bool any_hit;
     size_t rays;
     size_t hit;
     as_trace_timing_t timing;
@@ -93,7 +98,8 @@ static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *
 {
     as_trace_args_t args = *base;
     args.any_hit = any_hit;
-    out->name = name;
+    snprintf(out->name, sizeof out->name, "%s", name);
+    out->any_hit = any_hit;
     out->rays = count;
     if (as_trace(s, rays, count, hits, &args, &out->timing) != AS_OK) return tool_fail(TOOL);
     out->hit = 0;
@@ -118,16 +124,20 @@ static double mrays(const run_result *r)
 static void print_text(const run_result *r, bool any_hit)
 {
     const as_trace_timing_t *t = &r->timing;
-    printf("%-9s %10zu rays (%s), %zu hit: %.3f ms", r->name, r->rays, any_hit ? "any hit" : "closest hit", r->hit,
+    if (strcmp(r->name, "whitted total") == 0) {
+        printf("%-16s %10zu rays in all bounces: %.3f ms, %.2f Mrays/s\n", r->name, r->rays, t->trace_ms, mrays(r));
+        return;
+    }
+    printf("%-16s %10zu rays (%s), %zu hit: %.3f ms", r->name, r->rays, any_hit ? "any hit" : "closest hit", r->hit,
            t->trace_ms);
     if (t->device == AS_DEVICE_GPU && t->timed_runs)
         printf(" (median of %u, %.3f..%.3f)", t->timed_runs, t->trace_ms_min, t->trace_ms_max);
     printf(", %.2f Mrays/s\n", mrays(r));
     if (t->have_stats)
-        printf("%-9s steps per ray %.2f (max %u), triangle tests per ray %.2f (max %u)\n", "", t->steps_avg,
+        printf("%-16s steps per ray %.2f (max %u), triangle tests per ray %.2f (max %u)\n", "", t->steps_avg,
                t->steps_max, t->tests_avg, t->tests_max);
     if (r->verified)
-        printf("%-9s verified %llu rays: %llu wrong primitive, %llu false miss, %llu false hit; max t error %.2e "
+        printf("%-16s verified %llu rays: %llu wrong primitive, %llu false miss, %llu false hit; max t error %.2e "
                "relative, %.2e of the diagonal (%.0f ms)\n",
                "", (unsigned long long)r->verify.checked, (unsigned long long)r->verify.wrong_primitive,
                (unsigned long long)r->verify.false_misses, (unsigned long long)r->verify.false_hits,
@@ -158,7 +168,7 @@ int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
-           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT };
+           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -182,6 +192,7 @@ int main(int argc, char **argv)
         {"stats", no_argument, 0, OPT_STATS},
         {"verify", optional_argument, 0, OPT_VERIFY},
         {"residency", required_argument, 0, OPT_RESIDENCY},
+        {"bounces", required_argument, 0, OPT_BOUNCES},
         {"upload", required_argument, 0, OPT_UPLOAD},
         {"memory-limit", required_argument, 0, OPT_MEMLIMIT},
         {"threads", required_argument, 0, OPT_THREADS},
@@ -197,7 +208,7 @@ int main(int argc, char **argv)
     as_load_args_t load;
     as_load_args_default(&load);
     float eye[3], target[3], up[3] = {0, 1, 0}, fov = 45.0f, lights[3 * 16], ao_radius = 0.1f;
-    unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4;
+    unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4, bounces = 10;
     int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, c;
     unsigned width = 1920, height = 1080, u;
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL;
@@ -215,8 +226,9 @@ int main(int argc, char **argv)
             else if (strcmp(optarg, "shadow") == 0) workloads = W_PRIMARY | W_SHADOW;
             else if (strcmp(optarg, "ao") == 0) workloads = W_PRIMARY | W_AO;
             else if (strcmp(optarg, "diffuse") == 0) workloads = W_PRIMARY | W_DIFFUSE;
-            else if (strcmp(optarg, "all") == 0) workloads = W_PRIMARY | W_SHADOW | W_AO | W_DIFFUSE;
-            else return tool_usage_error(TOOL, "unknown workload '%s' (known: primary, shadow, ao, diffuse, all)", optarg);
+            else if (strcmp(optarg, "whitted") == 0) workloads = W_PRIMARY | W_WHITTED;
+            else if (strcmp(optarg, "all") == 0) workloads = W_PRIMARY | W_SHADOW | W_AO | W_DIFFUSE | W_WHITTED;
+            else return tool_usage_error(TOOL, "unknown workload '%s' (known: primary, shadow, ao, diffuse, whitted, all)", optarg);
             break;
         case OPT_EYE: if (!tool_parse_vec3(optarg, eye)) return tool_usage_error(TOOL, "--eye needs X,Y,Z, got '%s'", optarg); have_eye = 1; break;
         case OPT_TARGET: if (!tool_parse_vec3(optarg, target)) return tool_usage_error(TOOL, "--target needs X,Y,Z, got '%s'", optarg); have_target = 1; break;
@@ -247,6 +259,7 @@ int main(int argc, char **argv)
             break;
         case OPT_BATCH: if (!tool_parse_u32(optarg, &u) || u < 1 || u > 4096) return tool_usage_error(TOOL, "--batch needs 1..4096, got '%s'", optarg); targs.batch = u; break;
         case OPT_STATS: targs.collect_stats = true; break;
+        case OPT_BOUNCES: if (!tool_parse_u32(optarg, &bounces) || bounces > 64) return tool_usage_error(TOOL, "--bounces needs 0..64, got '%s'", optarg); break;
         case OPT_RESIDENCY:
             if (strcmp(optarg, "auto") == 0) targs.residency = AS_RESIDENCY_AUTO;
             else if (strcmp(optarg, "device") == 0) targs.residency = AS_RESIDENCY_DEVICE;
@@ -299,7 +312,7 @@ int main(int argc, char **argv)
     uint32_t *pixel_of_ray = NULL, *sec_from = NULL;
     float *ao = NULL;
     size_t count = 0, nres = 0;
-    run_result res[4];
+    run_result res[MAX_RESULTS];
     as_camera_t cam;
     as_structure_stats_t st;
     /* Always: a kernel must never read a file that could send it out of
@@ -329,7 +342,7 @@ int main(int argc, char **argv)
     if ((code = trace_one(rays_path ? "file" : "primary", s, rays, count, hits, &targs, rays_path && any_hit, &res[nres++])))
         goto done;
 
-    if (!rays_path && light_count == 0 && (workloads & W_SHADOW)) {
+    if (!rays_path && light_count == 0 && (workloads & (W_SHADOW | W_WHITTED))) {
         as_lights_default(st.bounds_lo, st.bounds_hi, lights);
         light_count = 4;
     }
@@ -371,6 +384,70 @@ int main(int argc, char **argv)
         }
     }
 
+    if (workloads & W_WHITTED) {
+        /* One bounce at a time: the shadow rays of this bounce's hits, then
+         * its reflection and refraction rays, traced for the next. */
+        as_whitted_args_t wa;
+        as_whitted_args_default(&wa);
+        wa.lights = lights;
+        wa.light_count = light_count;
+        const as_ray_t *cur = rays;
+        const as_hit_t *cur_hits = hits;
+        size_t cur_n = count;
+        as_ray_t *owned_rays = NULL;
+        as_hit_t *owned_hits = NULL;
+        size_t total_rays = count;
+        double total_ms = res[0].timing.trace_ms;
+        for (unsigned b = 0; b <= bounces && nres + 2 < MAX_RESULTS; ++b) {
+            as_ray_t *nx = NULL, *sh = NULL;
+            size_t nn = 0, ns = 0;
+            if (as_rays_whitted_bounce(s, cur, cur_hits, cur_n, &wa, &nx, &nn, &sh, &ns) != AS_OK) {
+                code = tool_fail(TOOL);
+                free(owned_rays); free(owned_hits);
+                goto done;
+            }
+            as_hit_t *sh_hits = malloc(sizeof *sh_hits * (ns ? ns : 1));
+            as_hit_t *nx_hits = malloc(sizeof *nx_hits * (nn ? nn : 1));
+            char name[32];
+            snprintf(name, sizeof name, "whitted %u shadow", b);
+            if (!sh_hits || !nx_hits ||
+                (code = trace_one(name, s, sh, ns, sh_hits, &targs, true, &res[nres++]))) {
+                free(sh); free(nx); free(sh_hits); free(nx_hits); free(owned_rays); free(owned_hits);
+                if (!code) code = EXIT_RUNTIME;
+                goto done;
+            }
+            total_rays += ns;
+            total_ms += res[nres - 1].timing.trace_ms;
+            free(sh);
+            free(sh_hits);
+            free(owned_rays);
+            free(owned_hits);
+            owned_rays = nx;
+            owned_hits = nx_hits;
+            if (nn == 0 || b == bounces) break;
+            snprintf(name, sizeof name, "whitted %u", b + 1);
+            if ((code = trace_one(name, s, nx, nn, nx_hits, &targs, false, &res[nres++]))) {
+                free(owned_rays); free(owned_hits);
+                goto done;
+            }
+            total_rays += nn;
+            total_ms += res[nres - 1].timing.trace_ms;
+            cur = nx;
+            cur_hits = nx_hits;
+            cur_n = nn;
+        }
+        free(owned_rays);
+        free(owned_hits);
+        if (nres < MAX_RESULTS) {
+            run_result *t = &res[nres++];
+            memset(t, 0, sizeof *t);
+            snprintf(t->name, sizeof t->name, "whitted total");
+            t->rays = total_rays;
+            t->timing.device = res[0].timing.device;
+            t->timing.trace_ms = total_ms;
+        }
+    }
+
     if (json) {
         printf("{\n  \"file\": ");
         tool_print_json_string(path);
@@ -381,7 +458,7 @@ int main(int argc, char **argv)
                "  \"upload_bytes\": %llu,\n  \"upload_gb_per_s\": %.3f,\n  \"load_ms\": %.3f,\n  \"workloads\": [\n",
                t_loaded - t_open, t_validated - t_loaded, gpu ? upinfo.method : "none", upinfo.upload_ms,
                (unsigned long long)upinfo.bytes, upinfo.gb_per_s, t_ready - t_open);
-        for (size_t i = 0; i < nres; ++i) print_json(&res[i], i == 0 ? (rays_path && any_hit) : strcmp(res[i].name, "diffuse") != 0, i + 1 == nres);
+        for (size_t i = 0; i < nres; ++i) print_json(&res[i], res[i].any_hit, i + 1 == nres);
         printf("  ]\n}\n");
     } else {
         if (!rays_path)
@@ -395,8 +472,7 @@ int main(int argc, char **argv)
         if (gpu)
             printf(", %s %.1f: %llu bytes at %.2f GB/s", upinfo.method, upinfo.upload_ms, (unsigned long long)upinfo.bytes, upinfo.gb_per_s);
         printf(")\n");
-        for (size_t i = 0; i < nres; ++i)
-            print_text(&res[i], i == 0 ? (rays_path && any_hit) : strcmp(res[i].name, "diffuse") != 0);
+        for (size_t i = 0; i < nres; ++i) print_text(&res[i], res[i].any_hit);
         printf("Mrays/s:   %.2f (%s)\n", mrays(&res[0]), res[0].name);
     }
     if (hits_path) {

@@ -235,3 +235,106 @@ void as_lights_default(const float lo[3], const float hi[3], float lights[12])
         lights[3 * l + 2] = lo[2] + fz * (hi[2] - lo[2]);
     }
 }
+
+/* ---- Whitted ------------------------------------------------------------- */
+
+void as_whitted_args_default(as_whitted_args_t *args)
+{
+    memset(args, 0, sizeof *args);
+    args->size = sizeof *args;
+    args->mirror_fraction = 0.10f;
+    args->glass_fraction = 0.05f;
+    args->ior = 1.5f;
+    args->seed = 7;
+    args->offset_fraction = 1e-4f;
+}
+
+int as_whitted_material(const as_whitted_args_t *args, uint32_t prim)
+{
+    const double u = hash01(args->seed, prim, 0x57);
+    if (u < args->mirror_fraction) return 1;
+    if (u < (double)args->mirror_fraction + args->glass_fraction) return 2;
+    return 0;
+}
+
+static void set_ray(as_ray_t *r, const double o[3], const double d[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        r->org[k] = (float)o[k];
+        r->dir[k] = (float)d[k];
+    }
+    r->tmin = 0.0f;
+    r->tmax = INFINITY;
+}
+
+as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits, size_t count,
+                                  const as_whitted_args_t *user_args, as_ray_t **next, size_t *next_count,
+                                  as_ray_t **shadow, size_t *shadow_count)
+{
+    if (!s || (!rays && count) || (!hits && count) || !next || !next_count || !shadow || !shadow_count)
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_rays_whitted_bounce: NULL argument");
+    as_whitted_args_t args;
+    as_whitted_args_default(&args);
+    if (user_args) memcpy(&args, user_args, user_args->size < sizeof args ? user_args->size : sizeof args);
+    const as_tri4_t **map = as_structure_triangles_by_prim(s);
+    if (!map) return as_get_error();
+    const size_t hit_count = count_hits(hits, count);
+    as_ray_t *nx = as_malloc(sizeof *nx * (2 * hit_count + 1), "Whitted rays");
+    as_ray_t *sh = as_malloc(sizeof *sh * (hit_count * args.light_count + 1), "Whitted shadow rays");
+    if (!nx || !sh) {
+        free((void *)map);
+        free(nx);
+        free(sh);
+        return as_get_error();
+    }
+    const double offset = args.offset_fraction * scene_diagonal(s);
+    size_t nn = 0, ns = 0;
+    for (size_t i = 0; i < count; ++i) {
+        if (hits[i].prim == AS_NO_HIT || hits[i].prim >= s->meta.triangle_count || !map[hits[i].prim]) continue;
+        double p[3], n[3];
+        if (!hit_frame(map[hits[i].prim], &rays[i], &hits[i], p, n)) continue;
+        const double above[3] = {p[0] + offset * n[0], p[1] + offset * n[1], p[2] + offset * n[2]};
+        const double below[3] = {p[0] - offset * n[0], p[1] - offset * n[1], p[2] - offset * n[2]};
+        /* Hard shadows at every hit. */
+        for (uint32_t l = 0; l < args.light_count; ++l) {
+            as_ray_t *r = &sh[ns++];
+            for (int k = 0; k < 3; ++k) {
+                r->org[k] = (float)above[k];
+                r->dir[k] = args.lights[3 * l + k] - r->org[k];
+            }
+            r->tmin = 0.0f;
+            r->tmax = 1.0f - 1e-4f;
+        }
+        const int material = as_whitted_material(&args, hits[i].prim);
+        if (material == 0) continue;
+        double d[3] = {rays[i].dir[0], rays[i].dir[1], rays[i].dir[2]};
+        const double dl = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        for (int k = 0; k < 3; ++k) d[k] /= dl;
+        const double cosi = -(d[0] * n[0] + d[1] * n[1] + d[2] * n[2]); /* n faces the ray: cosi >= 0 */
+        const double refl[3] = {d[0] + 2 * cosi * n[0], d[1] + 2 * cosi * n[1], d[2] + 2 * cosi * n[2]};
+        set_ray(&nx[nn++], above, refl);
+        if (material == 2) {
+            /* Entering or leaving: the geometric normal was flipped towards
+             * the ray, so the side is taken from the triangle's winding. */
+            const as_tri4_t *t = map[hits[i].prim];
+            const double e1[3] = {t->v1.x - t->v0.x, t->v1.y - t->v0.y, t->v1.z - t->v0.z};
+            const double e2[3] = {t->v2.x - t->v0.x, t->v2.y - t->v0.y, t->v2.z - t->v0.z};
+            const double wn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                                  e1[0] * e2[1] - e1[1] * e2[0]};
+            const int entering = wn[0] * d[0] + wn[1] * d[1] + wn[2] * d[2] < 0;
+            const double eta = entering ? 1.0 / args.ior : args.ior;
+            const double k2 = 1.0 - eta * eta * (1.0 - cosi * cosi);
+            if (k2 >= 0) {
+                const double c = eta * cosi - sqrt(k2);
+                const double refr[3] = {eta * d[0] + c * n[0], eta * d[1] + c * n[1], eta * d[2] + c * n[2]};
+                set_ray(&nx[nn++], below, refr);
+            }
+        }
+    }
+    free((void *)map);
+    *next = nx;
+    *next_count = nn;
+    *shadow = sh;
+    *shadow_count = ns;
+    return AS_OK;
+}

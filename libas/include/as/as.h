@@ -491,6 +491,33 @@ as_error_t as_rays_shadow(const as_structure_t *s, const as_ray_t *primary, cons
                           float offset_fraction, as_ray_t **out, size_t *out_count,
                           uint32_t **origin);
 
+/* Whitted ray tracing, one bounce at a time: from rays and their hits, the
+ * next bounce's reflection and refraction rays and the shadow rays of the
+ * hits. Without a material file, a fixed, seeded share of the triangles
+ * are mirrors and glass (index of refraction `ior`), the rest opaque:
+ * opaque hits spawn shadow rays only, mirrors a reflection ray too, glass a
+ * refraction and a reflection ray (the reflection alone on total internal
+ * reflection). */
+typedef struct as_whitted_args {
+    size_t size;
+    float mirror_fraction;       /* default 0.10 */
+    float glass_fraction;        /* default 0.05 */
+    float ior;                   /* default 1.5 */
+    uint64_t seed;               /* which triangles are mirrors and glass */
+    float offset_fraction;       /* as in as_secondary_args_t (default 1e-4) */
+    const float *lights;         /* 3 floats per point light */
+    uint32_t light_count;
+} as_whitted_args_t;
+void as_whitted_args_default(as_whitted_args_t *args);
+
+/* The material of a triangle under these arguments: 0 opaque, 1 mirror,
+ * 2 glass. */
+int as_whitted_material(const as_whitted_args_t *args, uint32_t prim);
+
+as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits,
+                                  size_t count, const as_whitted_args_t *args, as_ray_t **next,
+                                  size_t *next_count, as_ray_t **shadow, size_t *shadow_count);
+
 /* Four point lights from the scene box, at 90% of its height along y over
  * the quarter points of its x and z extent, so shadows fall inside the
  * scene (as-trace --light overrides them). `lights` holds 12 floats. */
