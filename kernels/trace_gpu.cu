@@ -27,12 +27,23 @@ struct device_counters {
     unsigned steps_max, tests_max;
 };
 
+// A traversal the kernels can launch: device pointers to its sections and a
+// call into its shared header. One struct per layout; the algorithm stays
+// in the header.
+struct bvh2_traversal {
+    const as_bvh2_node_t *nodes;
+    const as_tri4_t *tris;
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_bvh2_trace(nodes, tris, r, any_hit, h, c);
+    }
+};
+
 // One ray; STATS adds the per-ray counters (a separate instantiation, so the
 // timed kernel carries no counting code at all).
-template <bool STATS>
-__device__ __forceinline__ void trace_one(const as_bvh2_node_t *__restrict__ nodes, const as_tri4_t *__restrict__ tris,
-                                          const device_ray *__restrict__ rays, float4 *__restrict__ hits, size_t i,
-                                          int any_hit, device_counters *counters)
+template <class T, bool STATS>
+__device__ __forceinline__ void trace_one(const T &trav, const device_ray *__restrict__ rays,
+                                          float4 *__restrict__ hits, size_t i, int any_hit, device_counters *counters)
 {
     const float4 a = __ldg(&rays[i].a), b = __ldg(&rays[i].b);
     const float org[3] = {a.x, a.y, a.z}, dir[3] = {b.x, b.y, b.z};
@@ -40,7 +51,7 @@ __device__ __forceinline__ void trace_one(const as_bvh2_node_t *__restrict__ nod
     as_hit_rec_t h;
     as_trace_counters_t ctr = {0, 0};
     if (as_ray_prepare(org, a.w, dir, b.w, &pre))
-        as_bvh2_trace(nodes, tris, &pre, any_hit, &h, STATS ? &ctr : nullptr);
+        trav.trace(&pre, any_hit, &h, STATS ? &ctr : nullptr);
     else
         as_hit_rec_miss(&h);
     hits[i] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
@@ -52,24 +63,21 @@ __device__ __forceinline__ void trace_one(const as_bvh2_node_t *__restrict__ nod
     }
 }
 
-template <bool STATS>
-__global__ void bvh2_kernel_thread_per_ray(const as_bvh2_node_t *__restrict__ nodes,
-                                           const as_tri4_t *__restrict__ tris, const device_ray *__restrict__ rays,
-                                           float4 *__restrict__ hits, size_t count, int any_hit,
-                                           device_counters *counters)
+template <class T, bool STATS>
+__global__ void kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+                                      size_t count, int any_hit, device_counters *counters)
 {
     const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (i < count) trace_one<STATS>(nodes, tris, rays, hits, i, any_hit, counters);
+    if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, counters);
 }
 
 // Persistent threads (Aila & Laine 2009): a grid that fills the GPU once;
 // each warp takes `batch` rays per atomic from a global counter, so warps
 // that finish early take more work instead of idling at the tail.
-template <bool STATS>
-__global__ void bvh2_kernel_persistent(const as_bvh2_node_t *__restrict__ nodes, const as_tri4_t *__restrict__ tris,
-                                       const device_ray *__restrict__ rays, float4 *__restrict__ hits, size_t count,
-                                       int any_hit, unsigned long long *next, unsigned batch,
-                                       device_counters *counters)
+template <class T, bool STATS>
+__global__ void kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+                                  size_t count, int any_hit, unsigned long long *next, unsigned batch,
+                                  device_counters *counters)
 {
     const unsigned lane = threadIdx.x & 31u;
     for (;;) {
@@ -79,7 +87,7 @@ __global__ void bvh2_kernel_persistent(const as_bvh2_node_t *__restrict__ nodes,
         if (base >= count) return;
         for (unsigned k = lane; k < batch; k += 32) {
             const size_t i = (size_t)(base + k);
-            if (i < count) trace_one<STATS>(nodes, tris, rays, hits, i, any_hit, counters);
+            if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, counters);
         }
     }
 }
@@ -252,8 +260,11 @@ done:
     return AS_OK;
 }
 
-extern "C" as_error_t as_trace_gpu_bvh2(const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
-                                        as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
+namespace {
+
+template <class T>
+as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+                            as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
 {
     as_error_t err = AS_OK;
     void *d_rays = nullptr, *d_hits = nullptr;
@@ -268,12 +279,10 @@ extern "C" as_error_t as_trace_gpu_bvh2(const as_gpu_resident_t *g, const as_ray
     const unsigned batch = launch->batch ? launch->batch : 32;
     cudaDeviceProp prop;
     device_counters counters = {0, 0, 0, 0};
-    const as_bvh2_node_t *n = (const as_bvh2_node_t *)g->device[0];
-    const as_tri4_t *t = (const as_tri4_t *)g->device[1];
     const device_ray *r = nullptr;
     float4 *h = nullptr;
     CUDA_TRY(cudaGetDeviceProperties(&prop, 0), "cudaGetDeviceProperties");
-    CUDA_TRY(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, bvh2_kernel_persistent<false>, block, 0),
+    CUDA_TRY(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kernel_persistent<T, false>, block, 0),
              "occupancy query");
     grid_persistent = (unsigned)(prop.multiProcessorCount * (per_sm > 0 ? per_sm : 1));
     CUDA_TRY(cudaEventCreate(&ev0), "cudaEventCreate");
@@ -292,10 +301,10 @@ extern "C" as_error_t as_trace_gpu_bvh2(const as_gpu_resident_t *g, const as_ray
         CUDA_TRY(cudaMemset(d_next, 0, sizeof(unsigned long long)), "cudaMemset");
         CUDA_TRY(cudaEventRecord(ev0), "cudaEventRecord");
         if (launch->persistent)
-            bvh2_kernel_persistent<false><<<grid_persistent, block>>>(n, t, r, h, count, launch->any_hit, d_next, batch,
-                                                                      nullptr);
+            kernel_persistent<T, false><<<grid_persistent, block>>>(trav, r, h, count, launch->any_hit, d_next, batch,
+                                                                     nullptr);
         else
-            bvh2_kernel_thread_per_ray<false><<<grid_all, block>>>(n, t, r, h, count, launch->any_hit, nullptr);
+            kernel_thread_per_ray<T, false><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, nullptr);
         CUDA_TRY(cudaGetLastError(), "kernel launch");
         CUDA_TRY(cudaEventRecord(ev1), "cudaEventRecord");
         CUDA_TRY(cudaEventSynchronize(ev1), "traversal kernel");
@@ -305,7 +314,7 @@ extern "C" as_error_t as_trace_gpu_bvh2(const as_gpu_resident_t *g, const as_ray
     }
     if (launch->collect_stats) {
         CUDA_TRY(cudaMemset(d_counters, 0, sizeof(device_counters)), "cudaMemset");
-        bvh2_kernel_thread_per_ray<true><<<grid_all, block>>>(n, t, r, h, count, launch->any_hit, d_counters);
+        kernel_thread_per_ray<T, true><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, d_counters);
         CUDA_TRY(cudaGetLastError(), "statistics kernel launch");
         CUDA_TRY(cudaMemcpy(&counters, d_counters, sizeof counters, cudaMemcpyDeviceToHost), "statistics download");
     }
@@ -340,4 +349,19 @@ done:
     if (ev0) cudaEventDestroy(ev0);
     if (ev1) cudaEventDestroy(ev1);
     return err;
+}
+
+} // namespace
+
+extern "C" as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+                                   as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
+{
+    switch (layout) {
+    case AS_LAYOUT_BVH2_CHILD_BOUNDS: {
+        const bvh2_traversal t = {(const as_bvh2_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    default:
+        return as_set_error(AS_ERROR_UNSUPPORTED, "no CUDA kernel for layout 0x%04x in this build", layout);
+    }
 }

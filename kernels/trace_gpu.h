@@ -41,11 +41,12 @@ void as_gpu_release(as_gpu_resident_t *g);
 uint64_t as_gpu_free_memory(void);
 
 /* Uploads the rays, runs one warm-up launch and `timed_runs` timed launches
- * of the BVH2 kernel over resident sections (BVH2 nodes, TRI4), and copies
- * the hits back. timing->trace_ms is the median of the timed launches (CUDA
- * events around the kernel alone). */
-as_error_t as_trace_gpu_bvh2(const as_gpu_resident_t *g, const as_ray_t *rays, size_t count, as_hit_t *hits,
-                             const as_gpu_launch_t *launch, as_trace_timing_t *timing);
+ * of the layout's kernel over its resident sections (in the layout's section
+ * order), and copies the hits back. timing->trace_ms is the median of the
+ * timed launches (CUDA events around the kernel alone).
+ * AS_ERROR_UNSUPPORTED for a layout without a kernel. */
+as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+                        as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing);
 
 #ifdef __cplusplus
 }

@@ -87,7 +87,7 @@ static as_error_t bvh2_trace_gpu(const as_structure_t *s, const as_ray_t *rays, 
 {
     if (as_structure_find(s, ASF_TAG_BVH2)->count == 0)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "BVH2 section has no root node");
-    return as_trace_gpu_bvh2(s->gpu, rays, count, hits, launch, timing);
+    return as_trace_gpu(AS_LAYOUT_BVH2_CHILD_BOUNDS, s->gpu, rays, count, hits, launch, timing);
 }
 #endif
 
