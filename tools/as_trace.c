@@ -33,6 +33,8 @@ static void usage(void)
            "                             Primary rays go out in 16x32 tiles along a Morton curve.\n"
            "      --light X,Y,Z          a point light for shadow rays (repeatable; default:\n"
            "                             four lights from the scene box)\n"
+           "      --shuffle              trace the secondary rays in a random (seeded) order:\n"
+           "                             the incoherent case\n"
            "      --ao-rays N            AO rays per primary hit (default 16)\n"
            "      --ao-radius F          AO ray length, fraction of the scene diagonal (0.1)\n"
            "      --diffuse-rays N       diffuse rays per primary hit (default 4)\n"
@@ -116,6 +118,28 @@ static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *
     return EXIT_OK;
 }
 
+/* Fisher-Yates with a fixed seed (splitmix64), keeping each ray's origin
+ * index beside it. */
+static void shuffle_rays(as_ray_t *rays, uint32_t *from, size_t n)
+{
+    uint64_t st = 12345;
+    for (size_t i = n; i > 1; --i) {
+        uint64_t z = (st += 0x9E3779B97F4A7C15ull);
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        z ^= z >> 31;
+        const size_t j = (size_t)(z % i);
+        const as_ray_t r = rays[i - 1];
+        rays[i - 1] = rays[j];
+        rays[j] = r;
+        if (from) {
+            const uint32_t f = from[i - 1];
+            from[i - 1] = from[j];
+            from[j] = f;
+        }
+    }
+}
+
 static double mrays(const run_result *r)
 {
     return r->timing.trace_ms > 0 ? (double)r->rays / (r->timing.trace_ms * 1e3) : 0.0;
@@ -168,7 +192,7 @@ int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
-           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES };
+           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -193,6 +217,7 @@ int main(int argc, char **argv)
         {"verify", optional_argument, 0, OPT_VERIFY},
         {"residency", required_argument, 0, OPT_RESIDENCY},
         {"bounces", required_argument, 0, OPT_BOUNCES},
+        {"shuffle", no_argument, 0, OPT_SHUFFLE},
         {"upload", required_argument, 0, OPT_UPLOAD},
         {"memory-limit", required_argument, 0, OPT_MEMLIMIT},
         {"threads", required_argument, 0, OPT_THREADS},
@@ -209,7 +234,7 @@ int main(int argc, char **argv)
     as_load_args_default(&load);
     float eye[3], target[3], up[3] = {0, 1, 0}, fov = 45.0f, lights[3 * 16], ao_radius = 0.1f;
     unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4, bounces = 10;
-    int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, c;
+    int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
     unsigned width = 1920, height = 1080, u;
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL;
     opterr = 0;
@@ -259,6 +284,7 @@ int main(int argc, char **argv)
             break;
         case OPT_BATCH: if (!tool_parse_u32(optarg, &u) || u < 1 || u > 4096) return tool_usage_error(TOOL, "--batch needs 1..4096, got '%s'", optarg); targs.batch = u; break;
         case OPT_STATS: targs.collect_stats = true; break;
+        case OPT_SHUFFLE: shuffle = 1; break;
         case OPT_BOUNCES: if (!tool_parse_u32(optarg, &bounces) || bounces > 64) return tool_usage_error(TOOL, "--bounces needs 0..64, got '%s'", optarg); break;
         case OPT_RESIDENCY:
             if (strcmp(optarg, "auto") == 0) targs.residency = AS_RESIDENCY_AUTO;
@@ -365,9 +391,11 @@ int main(int argc, char **argv)
             e = as_rays_hemisphere(s, rays, hits, count, &sa, &sec, &n, &sec_from);
         }
         if (e != AS_OK) { code = tool_fail(TOOL); goto done; }
+        if (shuffle) shuffle_rays(sec, sec_from, n);
         sec_hits = malloc(sizeof *sec_hits * (n ? n : 1));
         if (!sec_hits) { fprintf(stderr, "%s: error: out of memory for %zu hits\n", TOOL, n); code = EXIT_RUNTIME; goto done; }
-        const char *name = w == W_SHADOW ? "shadow" : w == W_AO ? "ao" : "diffuse";
+        const char *name = w == W_SHADOW ? (shuffle ? "shadow random" : "shadow")
+                         : w == W_AO ? (shuffle ? "ao random" : "ao") : (shuffle ? "diffuse random" : "diffuse");
         if ((code = trace_one(name, s, sec, n, sec_hits, &targs, w != W_DIFFUSE, &res[nres++]))) goto done;
         if (w == W_AO && image_path) {
             /* Per pixel: the fraction of AO rays that escape. */
