@@ -43,14 +43,15 @@ struct bvh2_traversal {
 // timed kernel carries no counting code at all).
 template <class T, bool STATS>
 __device__ __forceinline__ void trace_one(const T &trav, const device_ray *__restrict__ rays,
-                                          float4 *__restrict__ hits, size_t i, int any_hit, device_counters *counters)
+                                          float4 *__restrict__ hits, size_t i, int any_hit, int ray_flags,
+                                          device_counters *counters)
 {
     const float4 a = __ldg(&rays[i].a), b = __ldg(&rays[i].b);
     const float org[3] = {a.x, a.y, a.z}, dir[3] = {b.x, b.y, b.z};
     as_ray_pre_t pre;
     as_hit_rec_t h;
     as_trace_counters_t ctr = {0, 0};
-    if (as_ray_prepare(org, a.w, dir, b.w, &pre))
+    if (as_ray_prepare(org, a.w, dir, b.w, ray_flags, &pre))
         trav.trace(&pre, any_hit, &h, STATS ? &ctr : nullptr);
     else
         as_hit_rec_miss(&h);
@@ -65,10 +66,10 @@ __device__ __forceinline__ void trace_one(const T &trav, const device_ray *__res
 
 template <class T, bool STATS>
 __global__ void kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
-                                      size_t count, int any_hit, device_counters *counters)
+                                      size_t count, int any_hit, int ray_flags, device_counters *counters)
 {
     const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, counters);
+    if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, ray_flags, counters);
 }
 
 // Persistent threads (Aila & Laine 2009): a grid that fills the GPU once;
@@ -76,8 +77,8 @@ __global__ void kernel_thread_per_ray(const T trav, const device_ray *__restrict
 // that finish early take more work instead of idling at the tail.
 template <class T, bool STATS>
 __global__ void kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
-                                  size_t count, int any_hit, unsigned long long *next, unsigned batch,
-                                  device_counters *counters)
+                                  size_t count, int any_hit, int ray_flags, unsigned long long *next,
+                                  unsigned batch, device_counters *counters)
 {
     const unsigned lane = threadIdx.x & 31u;
     for (;;) {
@@ -87,7 +88,7 @@ __global__ void kernel_persistent(const T trav, const device_ray *__restrict__ r
         if (base >= count) return;
         for (unsigned k = lane; k < batch; k += 32) {
             const size_t i = (size_t)(base + k);
-            if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, counters);
+            if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, ray_flags, counters);
         }
     }
 }
@@ -301,10 +302,11 @@ as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_
         CUDA_TRY(cudaMemset(d_next, 0, sizeof(unsigned long long)), "cudaMemset");
         CUDA_TRY(cudaEventRecord(ev0), "cudaEventRecord");
         if (launch->persistent)
-            kernel_persistent<T, false><<<grid_persistent, block>>>(trav, r, h, count, launch->any_hit, d_next, batch,
-                                                                     nullptr);
+            kernel_persistent<T, false><<<grid_persistent, block>>>(trav, r, h, count, launch->any_hit,
+                                                                     launch->ray_flags, d_next, batch, nullptr);
         else
-            kernel_thread_per_ray<T, false><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, nullptr);
+            kernel_thread_per_ray<T, false><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, launch->ray_flags,
+                                                                  nullptr);
         CUDA_TRY(cudaGetLastError(), "kernel launch");
         CUDA_TRY(cudaEventRecord(ev1), "cudaEventRecord");
         CUDA_TRY(cudaEventSynchronize(ev1), "traversal kernel");
@@ -314,7 +316,8 @@ as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_
     }
     if (launch->collect_stats) {
         CUDA_TRY(cudaMemset(d_counters, 0, sizeof(device_counters)), "cudaMemset");
-        kernel_thread_per_ray<T, true><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, d_counters);
+        kernel_thread_per_ray<T, true><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, launch->ray_flags,
+                                                            d_counters);
         CUDA_TRY(cudaGetLastError(), "statistics kernel launch");
         CUDA_TRY(cudaMemcpy(&counters, d_counters, sizeof counters, cudaMemcpyDeviceToHost), "statistics download");
     }

@@ -18,6 +18,7 @@ typedef struct as_gpu_launch {
     int persistent;              /* persistent threads, else one thread per ray */
     unsigned batch;              /* persistent: rays per atomic */
     int collect_stats;           /* run the counting kernel too (not timed) */
+    int ray_flags;               /* as_ray_prepare flags (AS_RAY_PRECISE) */
 } as_gpu_launch_t;
 
 /* A structure's sections on the device (or mapped for it in place). */

@@ -43,6 +43,8 @@ static void usage(void)
            "      --hits-out FILE        write the hits (primary or --rays) as a hit file\n"
            "  -i, --image FILE.png       write an image: shaded primary hits, or AO when the\n"
            "                             workload is ao\n"
+           "      --intersector NAME     watertight (default: float, explicitly rounded) or\n"
+           "                             watertight-double (exact where float cancels)\n"
            "      --runs N               GPU: timed launches after a warm-up (default 10)\n"
            "      --schedule NAME        GPU: thread (one per ray, default: measured fastest)\n"
            "                             or persistent (warps fetch --batch rays per atomic)\n"
@@ -192,7 +194,7 @@ int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
-           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE };
+           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -218,6 +220,7 @@ int main(int argc, char **argv)
         {"residency", required_argument, 0, OPT_RESIDENCY},
         {"bounces", required_argument, 0, OPT_BOUNCES},
         {"shuffle", no_argument, 0, OPT_SHUFFLE},
+        {"intersector", required_argument, 0, OPT_INTERSECTOR},
         {"upload", required_argument, 0, OPT_UPLOAD},
         {"memory-limit", required_argument, 0, OPT_MEMLIMIT},
         {"threads", required_argument, 0, OPT_THREADS},
@@ -285,6 +288,11 @@ int main(int argc, char **argv)
         case OPT_BATCH: if (!tool_parse_u32(optarg, &u) || u < 1 || u > 4096) return tool_usage_error(TOOL, "--batch needs 1..4096, got '%s'", optarg); targs.batch = u; break;
         case OPT_STATS: targs.collect_stats = true; break;
         case OPT_SHUFFLE: shuffle = 1; break;
+        case OPT_INTERSECTOR:
+            if (strcmp(optarg, "watertight") == 0) targs.intersector = AS_INTERSECTOR_WATERTIGHT;
+            else if (strcmp(optarg, "watertight-double") == 0) targs.intersector = AS_INTERSECTOR_WATERTIGHT_DOUBLE;
+            else return tool_usage_error(TOOL, "unknown intersector '%s' (known: watertight, watertight-double)", optarg);
+            break;
         case OPT_BOUNCES: if (!tool_parse_u32(optarg, &bounces) || bounces > 64) return tool_usage_error(TOOL, "--bounces needs 0..64, got '%s'", optarg); break;
         case OPT_RESIDENCY:
             if (strcmp(optarg, "auto") == 0) targs.residency = AS_RESIDENCY_AUTO;

@@ -62,7 +62,8 @@ static void bvh2_stats(const as_structure_t *s, as_structure_stats_t *st)
     st->sah_cost = bvh2_walk(s, st);
 }
 
-static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count, int any_hit)
+static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count, int any_hit,
+                           int ray_flags)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
     for (size_t i = 0; i < count; ++i) {
@@ -70,7 +71,7 @@ static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit
         as_hit_rec_t h;
         as_ray_pre_t pre;
         /* A file loaded without validation may have no root at all. */
-        if (ns->count > 0 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, &pre))
+        if (ns->count > 0 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, ray_flags, &pre))
             as_bvh2_trace(ns->data, ts->data, &pre, any_hit, &h, NULL);
         else
             as_hit_rec_miss(&h);

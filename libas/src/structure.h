@@ -69,9 +69,10 @@ typedef struct as_layout_ops {
     as_error_t (*validate)(const as_structure_t *s, const char *name);
     /* Counts, depths, histograms, SAH cost; `s` has been validated. */
     void (*stats)(const as_structure_t *s, as_structure_stats_t *st);
-    /* Traces rays [0, count) on the calling thread. */
+    /* Traces rays [0, count) on the calling thread; ray_flags go to
+     * as_ray_prepare (AS_RAY_PRECISE). */
     void (*trace_cpu)(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count,
-                      int any_hit);
+                      int any_hit, int ray_flags);
     /* Fills `dst` (zeroed) with the same structure in `target` layout, or
      * returns AS_ERROR_UNSUPPORTED; NULL when the layout converts to none. */
     as_error_t (*convert)(const as_structure_t *src, uint32_t target, as_structure_t *dst);

@@ -1,6 +1,7 @@
 /* Tracing front end: argument defaults and the choice of back end. */
 #include "structure.h"
 #include "trace_gpu.h"
+#include "ray_triangle.h"
 
 #include <string.h>
 
@@ -109,6 +110,7 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
         args.schedule == AS_SCHEDULE_PERSISTENT,
         args.batch ? args.batch : 32,
         args.collect_stats,
+        args.intersector == AS_INTERSECTOR_WATERTIGHT_DOUBLE ? AS_RAY_PRECISE : 0,
     };
     return ops->trace_gpu(s, rays, count, hits, &launch, timing);
 }

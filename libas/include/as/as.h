@@ -342,6 +342,12 @@ typedef enum as_upload_method {
     AS_UPLOAD_REGISTERED = 3     /* cudaHostRegister the mapping, then copy */
 } as_upload_method_t;
 
+typedef enum as_intersector {
+    AS_INTERSECTOR_WATERTIGHT = 0,        /* Woop et al. 2013 in float, explicitly rounded */
+    AS_INTERSECTOR_WATERTIGHT_DOUBLE = 1  /* the same test in double: also exact where float
+                                             cancels (huge or tiny triangles for their distance) */
+} as_intersector_t;
+
 typedef struct as_trace_args {
     size_t size;
     as_device_t device;
@@ -353,6 +359,7 @@ typedef struct as_trace_args {
     bool collect_stats;          /* also count steps and triangle tests per ray, in a
                                     separate pass (GPU: a separately compiled kernel)
                                     so the timed pass does not pay for counting */
+    as_intersector_t intersector;
     as_residency_t residency;    /* GPU: where the structure lives (first GPU trace) */
     as_upload_method_t upload;   /* GPU: how sections reach device memory */
     uint64_t device_memory_limit; /* GPU: bytes the structure may take in device
