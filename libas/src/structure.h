@@ -51,6 +51,21 @@ void *as_aligned_alloc(size_t bytes, const char *what);
 
 struct as_gpu_launch; /* kernels/trace_gpu.h */
 
+/* Traversal counters summed over rays, with their maxima. */
+typedef struct as_cpu_stats {
+    uint64_t steps, tests;
+    uint32_t steps_max, tests_max;
+} as_cpu_stats_t;
+
+/* Adds one ray's counters. */
+static inline void as_cpu_stats_add(as_cpu_stats_t *s, uint32_t steps, uint32_t tests)
+{
+    s->steps += steps;
+    s->tests += tests;
+    if (steps > s->steps_max) s->steps_max = steps;
+    if (tests > s->tests_max) s->tests_max = tests;
+}
+
 typedef struct as_layout_section {
     uint32_t tag;
     uint32_t stride;
@@ -70,9 +85,10 @@ typedef struct as_layout_ops {
     /* Counts, depths, histograms, SAH cost; `s` has been validated. */
     void (*stats)(const as_structure_t *s, as_structure_stats_t *st);
     /* Traces rays [0, count) on the calling thread; ray_flags go to
-     * as_ray_prepare (AS_RAY_PRECISE). */
+     * as_ray_prepare (AS_RAY_PRECISE). With `stats`, also counts each ray's
+     * steps and triangle tests into it. */
     void (*trace_cpu)(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count,
-                      int any_hit, int ray_flags);
+                      int any_hit, int ray_flags, struct as_cpu_stats *stats);
     /* Fills `dst` (zeroed) with the same structure in `target` layout, or
      * returns AS_ERROR_UNSUPPORTED; NULL when the layout converts to none. */
     as_error_t (*convert)(const as_structure_t *src, uint32_t target, as_structure_t *dst);
