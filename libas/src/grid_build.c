@@ -23,6 +23,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Plain comparisons: libm's fminf is a call without -ffinite-math-only. */
+static inline float min3f(float a, float b, float c) { const float m = a < b ? a : b; return m < c ? m : c; }
+static inline float max3f(float a, float b, float c) { const float m = a > b ? a : b; return m > c ? m : c; }
+
 #define BLOCK 2048
 
 typedef struct grid_job {
@@ -38,6 +42,7 @@ typedef struct grid_job {
     atomic_uint_fast64_t done;
     uint64_t total;
     int pass;
+    double pad;                   /* 4 x as_spatial_pad of the grid box */
 } grid_job;
 
 /* The box of cell index i on axis k: the same expressions as the traversal. */
@@ -69,20 +74,22 @@ static void grid_block(void *user, size_t block)
         const float *a = m->positions + 3 * (size_t)ix[0], *b = m->positions + 3 * (size_t)ix[1],
                     *c = m->positions + 3 * (size_t)ix[2];
         uint32_t c0[3], c1[3];
+        int single = 1;
         for (int k = 0; k < 3; ++k) {
-            const float lo = fminf(a[k], fminf(b[k], c[k])), hi = fmaxf(a[k], fmaxf(b[k], c[k]));
-            /* One cell of slack either way: walls round, the pad reaches over. */
-            c0[k] = clamp_cell(g, k, lo);
-            c1[k] = clamp_cell(g, k, hi);
-            if (c0[k] > 0) c0[k]--;
-            if (c1[k] + 1 < g->dims[k]) c1[k]++;
+            const float lo = min3f(a[k], b[k], c[k]), hi = max3f(a[k], b[k], c[k]);
+            /* The cells the box reaches, grown by the pad (which bounds every
+             * cell's pad and the rounding of the walls). */
+            c0[k] = clamp_cell(g, k, (double)lo - job->pad);
+            c1[k] = clamp_cell(g, k, (double)hi + job->pad);
+            single &= c0[k] == c1[k];
         }
         for (uint32_t z = c0[2]; z <= c1[2]; ++z)
             for (uint32_t y = c0[1]; y <= c1[1]; ++y)
                 for (uint32_t x = c0[0]; x <= c1[0]; ++x) {
                     const float lo[3] = {wall(g, 0, x), wall(g, 1, y), wall(g, 2, z)};
                     const float hi[3] = {wall(g, 0, x + 1), wall(g, 1, y + 1), wall(g, 2, z + 1)};
-                    if (!as_tri_box_overlap(a, b, c, lo, hi, as_spatial_pad(lo, hi))) continue;
+                    /* A box within one cell overlaps it: no test. */
+                    if (!single && !as_tri_box_overlap(a, b, c, lo, hi, as_spatial_pad(lo, hi))) continue;
                     const size_t cell = ((size_t)z * g->dims[1] + y) * g->dims[0] + x;
                     if (job->pass == 1) {
                         atomic_fetch_add_explicit(&job->counts[cell], 1, memory_order_relaxed);
@@ -199,6 +206,7 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.skip = skip;
     job.args = args;
     job.total = 2 * (uint64_t)(nt ? nt : 1);
+    job.pad = 4.0 * as_spatial_pad(g->lo, g->hi);
     const size_t blocks = (nt + BLOCK - 1) / BLOCK;
     uint64_t cells = 1;
     for (;;) {

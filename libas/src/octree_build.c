@@ -27,6 +27,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Plain comparisons: libm's fminf is a call without -ffinite-math-only. */
+static inline float min3f(float a, float b, float c) { const float m = a < b ? a : b; return m < c ? m : c; }
+static inline float max3f(float a, float b, float c) { const float m = a > b ? a : b; return m > c ? m : c; }
+
 typedef struct oct_cell {
     float lo[3];
     uint32_t depth;
@@ -55,23 +59,43 @@ static void split_cell(void *user, size_t index)
     if (!buf) { atomic_store(&job->failed, 1); return; }
     job->child_lists[index] = buf;
     const float *p = job->mesh->positions;
+    float clo[8][3], chi[8][3], mid[3];
+    double pad[8];
+    for (int k = 0; k < 3; ++k) mid[k] = c->lo[k] + half;
     for (int ch = 0; ch < 8; ++ch) {
-        float lo[3], hi[3];
         for (int k = 0; k < 3; ++k) {
             const int bit = (ch >> (2 - k)) & 1;
-            lo[k] = bit ? c->lo[k] + half : c->lo[k];
-            hi[k] = lo[k] + half;
+            clo[ch][k] = bit ? mid[k] : c->lo[k];
+            chi[ch][k] = clo[ch][k] + half;
         }
-        const double pad = as_spatial_pad(lo, hi);
-        uint32_t *out = buf + (size_t)ch * c->count, n = 0;
-        for (uint32_t i = 0; i < c->count; ++i) {
-            const uint32_t id = c->tris[i];
-            const uint32_t *ix = job->mesh->indices + 3 * (size_t)id;
-            if (as_tri_box_overlap(p + 3 * (size_t)ix[0], p + 3 * (size_t)ix[1], p + 3 * (size_t)ix[2], lo, hi, pad))
-                out[n++] = id;
-        }
-        job->child_counts[index][ch] = n;
+        pad[ch] = as_spatial_pad(clo[ch], chi[ch]);
     }
+    uint32_t n[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (uint32_t i = 0; i < c->count; ++i) {
+        const uint32_t id = c->tris[i];
+        const uint32_t *ix = job->mesh->indices + 3 * (size_t)id;
+        const float *a = p + 3 * (size_t)ix[0], *b = p + 3 * (size_t)ix[1], *cc = p + 3 * (size_t)ix[2];
+        /* Which halves the triangle's box reaches on each axis (the pads
+         * are a few ulps: pad[0] bounds them all). */
+        int lower[3], upper[3], straddles = 0;
+        for (int k = 0; k < 3; ++k) {
+            const float lo = min3f(a[k], b[k], cc[k]), hi = max3f(a[k], b[k], cc[k]);
+            const double pk = pad[7] > pad[0] ? pad[7] : pad[0];
+            lower[k] = (double)lo <= (double)mid[k] + pk;
+            upper[k] = (double)hi >= (double)mid[k] - pk;
+            straddles |= lower[k] && upper[k];
+        }
+        for (int ch = 0; ch < 8; ++ch) {
+            int ok = 1;
+            for (int k = 0; k < 3; ++k) ok &= ((ch >> (2 - k)) & 1) ? upper[k] : lower[k];
+            if (!ok) continue;
+            /* A box inside one child's half on every axis needs no test:
+             * the triangle overlaps the parent, so it overlaps the child. */
+            if (straddles && !as_tri_box_overlap(a, b, cc, clo[ch], chi[ch], pad[ch])) continue;
+            buf[(size_t)ch * c->count + n[ch]++] = id;
+        }
+    }
+    for (int ch = 0; ch < 8; ++ch) job->child_counts[index][ch] = n[ch];
 }
 
 as_error_t as_octree_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
