@@ -43,6 +43,8 @@ typedef struct grid_job {
     uint64_t total;
     int pass;
     double pad;                   /* 4 x as_spatial_pad of the grid box */
+    double budget;                /* most references allowed */
+    atomic_int over;              /* pass 1 found more than the budget */
 } grid_job;
 
 /* The box of cell index i on axis k: the same expressions as the traversal. */
@@ -70,6 +72,12 @@ static void grid_block(void *user, size_t block)
     uint64_t local_refs = 0;
     for (uint32_t t = begin; t < end; ++t) {
         if (job->skip[t]) continue;
+        /* Pass 1 stops as soon as the budget is exceeded: the total would
+         * exceed it too, whatever the order. */
+        if (job->pass == 1 && (t & 63) == 0) {
+            if (atomic_load(&job->over)) return;
+            if ((double)(atomic_load(&job->refs) + local_refs) > job->budget) { atomic_store(&job->over, 1); return; }
+        }
         const uint32_t *ix = m->indices + 3 * (size_t)t;
         const float *a = m->positions + 3 * (size_t)ix[0], *b = m->positions + 3 * (size_t)ix[1],
                     *c = m->positions + 3 * (size_t)ix[2];
@@ -207,6 +215,7 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.args = args;
     job.total = 2 * (uint64_t)(nt ? nt : 1);
     job.pad = 4.0 * as_spatial_pad(g->lo, g->hi);
+    job.budget = budget < (double)0xFFFFFFF0u ? budget : (double)0xFFFFFFF0u;
     const size_t blocks = (nt + BLOCK - 1) / BLOCK;
     uint64_t cells = 1;
     for (;;) {
@@ -226,16 +235,21 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         if (!counts) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for %llu grid cells", (unsigned long long)cells); goto done; }
         job.counts = counts;
         job.pass = 1;
+        atomic_store(&job.over, 0);
         atomic_store(&job.refs, 0);
         atomic_store(&job.done, 0);
         as_parallel_for(threads, blocks, grid_block, &job);
         if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
         const uint64_t refs = atomic_load(&job.refs);
-        if (((double)refs <= budget && refs < 0xFFFFFFF0u) || cells == 1) {
-            if (refs >= 0xFFFFFFF0u) { err = as_set_error(AS_ERROR_UNSUPPORTED, "grid references exceed 32 bits"); goto done; }
-            break;
+        if (!atomic_load(&job.over) && (double)refs <= job.budget) break;
+        if (cells == 1) {
+            /* One cell holds every triangle once: within any budget >= 1. */
+            err = as_set_error(AS_ERROR_UNSUPPORTED, "grid references exceed 32 bits");
+            goto done;
         }
-        scale *= 0.8; /* too many references: coarser */
+        /* Too many references: coarser. The 0.8 keeps the grid as fine as
+         * the budget allows, to within a factor 0.8 per axis. */
+        scale *= 0.8;
     }
     offsets = as_aligned_alloc(sizeof(uint32_t) * (cells + 1), "grid cell offsets");
     const uint64_t refs = atomic_load(&job.refs);
