@@ -168,8 +168,6 @@ as_error_t as_octree_build(const as_mesh_t *mesh, const as_build_args_t *args, a
         for (uint32_t i = 0; i < mesh->triangle_count; ++i)
             if (!as_mesh_triangle_is_degenerate(mesh, i)) cells[0].tris[k++] = i;
     }
-    /* Per cell: first child's cell index, or 0 for a leaf. */
-    uint64_t *first_child = NULL;
     const double budget = (double)args->split_budget * (double)(n ? n : 1);
     uint64_t refs = n;
     uint64_t level_begin = 0, level_end = 1;
@@ -297,7 +295,6 @@ done:
     for (uint64_t c = 0; c < cell_count; ++c)
         if (cells[c].count != AS_OCTREE_INNER) free(cells[c].tris);
     free(cells);
-    free(first_child);
     free(hdr);
     free(nodes);
     free(prims);

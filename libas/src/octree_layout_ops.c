@@ -12,7 +12,6 @@
 
 double as_octree_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
 {
-    const as_octree_header_t *hdr = as_structure_find(s, ASF_TAG_OCTH)->data;
     const as_section_t *ns = as_structure_find(s, ASF_TAG_OCTN);
     const as_octree_node_t *nodes = ns->data;
     const double ci = s->meta.cost_intersection, ct = s->meta.cost_traversal;
@@ -37,7 +36,6 @@ double as_octree_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
         st->depth_histogram[depth[i] < AS_HISTOGRAM_BINS ? depth[i] : AS_HISTOGRAM_BINS - 1]++;
         st->leaf_size_histogram[nodes[i].count < AS_HISTOGRAM_BINS ? nodes[i].count : AS_HISTOGRAM_BINS - 1]++;
     }
-    (void)hdr;
     free(depth);
     if (st) st->average_leaf_depth = st->leaf_count ? (double)depth_sum / (double)st->leaf_count : 0.0;
     return sah;

@@ -33,8 +33,9 @@ void as_spatial_meta(as_structure_t *s, const as_mesh_t *mesh, const as_build_ar
 /* Half the surface area of a box, in double (SAH ratios). */
 double as_spatial_half_area(const float lo[3], const float hi[3]);
 
-/* Checks shared by the validators: TRIS entries finite with v0.w = their
- * index, PRIM entries inside TRIS and not zero-area. */
+/* Checks shared by the validators: TRIS holds META.triangle_count finite
+ * entries with v0.w = their index, and every PRIM entry is inside TRIS. (A
+ * reference to a zero-area triangle would be harmless: it is never hit.) */
 as_error_t as_spatial_validate_tris(const as_structure_t *s, const char *name, const as_section_t *tris,
                                     const as_section_t *prims);
 
