@@ -32,7 +32,6 @@ as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays, con
     if (!s || !rays || !hits || !path || !width || !height)
         return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_image_write_png: bad argument");
     const as_section_t *ts = as_structure_find(s, ASF_TAG_TRI4);
-    if (!ts) ts = as_structure_find(s, ASF_TAG_TRIS); /* source order, the same records */
     if (!ts) return as_set_error(AS_ERROR_UNSUPPORTED, "the structure has no triangles to shade");
     const as_tri4_t *tris = ts->data;
     /* Hits name source triangles; shading needs their vertices. */
