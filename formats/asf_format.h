@@ -21,6 +21,13 @@
 #define ASF_TAG_META ASF_TAG('M', 'E', 'T', 'A') /* as_meta_t, required */
 #define ASF_TAG_BVH2 ASF_TAG('B', 'V', 'H', '2') /* as_bvh2_node_t[], child-bounds layout */
 #define ASF_TAG_TRI4 ASF_TAG('T', 'R', 'I', '4') /* as_tri4_t[], triangles in leaf order */
+#define ASF_TAG_TRIS ASF_TAG('T', 'R', 'I', 'S') /* as_tri4_t[], one per source triangle, source order */
+#define ASF_TAG_PRIM ASF_TAG('P', 'R', 'I', 'M') /* uint32_t[], leaf lists of source indices into TRIS */
+#define ASF_TAG_BIHN ASF_TAG('B', 'I', 'H', 'N') /* as_bih_node_t[], BIH nodes */
+#define ASF_TAG_OCTH ASF_TAG('O', 'C', 'T', 'H') /* as_octree_header_t, the root cube */
+#define ASF_TAG_OCTN ASF_TAG('O', 'C', 'T', 'N') /* as_octree_node_t[], octree nodes */
+#define ASF_TAG_GRDH ASF_TAG('G', 'R', 'D', 'H') /* as_grid_header_t, dimensions and box */
+#define ASF_TAG_GRDC ASF_TAG('G', 'R', 'D', 'C') /* uint32_t[cells + 1], cell offsets into PRIM */
 
 /* Section flags. */
 #define ASF_SECTION_REQUIRED 0x1u   /* a reader that does not know the tag must refuse */

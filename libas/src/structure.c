@@ -91,6 +91,9 @@ typedef struct as_builder_entry {
 
 static const as_builder_entry_t builders[] = {
     {AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sah", as_bvh_build_sah},
+    {AS_STRUCT_BIH, AS_BUILDER_BIH, AS_LAYOUT_BIH, "bih", as_bih_build},
+    {AS_STRUCT_OCTREE, AS_BUILDER_OCTREE, AS_LAYOUT_OCTREE, "octree", as_octree_build},
+    {AS_STRUCT_GRID, AS_BUILDER_GRID, AS_LAYOUT_GRID, "grid", as_grid_build},
 };
 
 /* The kind's first builder stands for AS_BUILDER_DEFAULT. */
@@ -197,6 +200,9 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
 
 static const as_layout_ops_t *const layouts[] = {
     &as_layout_bvh2_child_bounds,
+    &as_layout_bih,
+    &as_layout_octree,
+    &as_layout_grid,
 };
 
 const as_layout_ops_t *as_layout_find(uint32_t structure_kind, uint32_t layout)

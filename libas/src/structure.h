@@ -111,6 +111,22 @@ as_error_t as_bvh_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, 
 double as_bvh2_sah_cost(const as_structure_t *s);
 as_error_t as_bvh2_validate(const as_structure_t *s, const char *name);
 
+/* BIH, octree and uniform grid: builders, validators, SAH costs (from the
+ * stored structure; `st` may be NULL, else its counts and histograms are
+ * filled too). */
+extern const as_layout_ops_t as_layout_bih;
+extern const as_layout_ops_t as_layout_octree;
+extern const as_layout_ops_t as_layout_grid;
+as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+as_error_t as_octree_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+as_error_t as_bih_validate(const as_structure_t *s, const char *name);
+as_error_t as_octree_validate(const as_structure_t *s, const char *name);
+as_error_t as_grid_validate(const as_structure_t *s, const char *name);
+double as_bih_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
+double as_octree_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
+double as_grid_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
+
 /* The CPU back end: a layout's trace_cpu on every core. */
 as_error_t as_trace_cpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                         const as_trace_args_t *args, as_trace_timing_t *timing);

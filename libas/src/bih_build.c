@@ -1,0 +1,331 @@
+/* BIH builder: Wachter & Keller 2006, "Instant ray tracing: the bounding
+ * interval hierarchy", with their global heuristic (section 2.2): a node
+ * splits its candidate box, not its objects' box, in the middle of the
+ * longest axis; objects go left or right by their box centre; the left
+ * child's clip plane is the largest upper bound of its objects, the right
+ * child's the smallest lower bound. When every centre falls on one side,
+ * the candidate box shrinks to that half and the split is retried, so empty
+ * space is cut off without creating a node. The children's candidate boxes
+ * are the two halves of the parent's.
+ *
+ * Termination: a node becomes a leaf at max_leaf_size objects or at the
+ * depth limit (never deeper than the traversal stack). When all centres
+ * coincide, or the candidate box can no longer be halved in floats, the
+ * objects are split into two halves of their list (like the BVH's fallback),
+ * which keeps the depth logarithmic for many copies of one triangle.
+ *
+ * Determinism: the shape depends only on the input (sequential in-place
+ * partitions per node); node and PRIM order come from one depth-first walk
+ * after the build, so the output is byte-identical for any thread count.
+ * Subtrees of at least PARALLEL_MIN_PRIMS objects on both sides go to other
+ * threads. */
+#include "spatial_common.h"
+#include "bih_layout.h"
+
+#include <float.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PARALLEL_MIN_PRIMS 8192
+/* Retries of the global heuristic before the list-half fallback. */
+#define MAX_EMPTY_RETRIES 128
+
+typedef struct bih_ref {
+    float lo[3];
+    uint32_t id;
+    float hi[3];
+    float pad;
+} bih_ref;
+
+typedef struct bih_tmp {
+    int32_t left;            /* tmp index of the left child, -1 for a leaf; right = left + 1 */
+    uint32_t axis;
+    float clip[2];
+    uint32_t first, count;   /* leaf range in refs */
+} bih_tmp;
+
+typedef struct bih_builder {
+    const as_build_args_t *args;
+    bih_ref *refs;
+    bih_tmp *nodes;
+    uint64_t node_capacity;
+    atomic_uint_fast64_t node_next;
+    uint32_t depth_limit;
+    atomic_int live_threads;
+    int max_threads;
+    atomic_uint_fast64_t done;
+    uint64_t total;
+    atomic_int cancelled;
+    pthread_mutex_t progress_lock;
+    double next_report;
+} bih_builder;
+
+static void report(bih_builder *b, uint64_t prims)
+{
+    const uint64_t done = atomic_fetch_add(&b->done, prims) + prims;
+    if (!b->args->progress) return;
+    const double fraction = b->total ? (double)done / (double)b->total : 1.0;
+    pthread_mutex_lock(&b->progress_lock);
+    if (fraction >= b->next_report) {
+        b->next_report = fraction + 0.01;
+        if (!b->args->progress(b->args->progress_user, fraction)) atomic_store(&b->cancelled, 1);
+    }
+    pthread_mutex_unlock(&b->progress_lock);
+}
+
+static void make_leaf(bih_builder *b, int32_t node, uint32_t first, uint32_t count)
+{
+    bih_tmp *n = &b->nodes[node];
+    n->left = -1;
+    n->axis = AS_BIH_LEAF;
+    n->first = first;
+    n->count = count;
+    report(b, count);
+}
+
+static float centre(const bih_ref *r, int axis) { return 0.5f * (r->lo[axis] + r->hi[axis]); }
+
+typedef struct bih_task {
+    bih_builder *b;
+    int32_t node;
+    uint32_t first, count, depth;
+    float cand_lo[3], cand_hi[3];
+} bih_task;
+
+static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t count, uint32_t depth,
+                       const float cand_lo_in[3], const float cand_hi_in[3]);
+
+static void *build_thread(void *arg)
+{
+    bih_task *t = arg;
+    build_node(t->b, t->node, t->first, t->count, t->depth, t->cand_lo, t->cand_hi);
+    atomic_fetch_sub(&t->b->live_threads, 1);
+    return NULL;
+}
+
+static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t count, uint32_t depth,
+                       const float cand_lo_in[3], const float cand_hi_in[3])
+{
+    if (atomic_load(&b->cancelled) || count <= b->args->max_leaf_size || depth >= b->depth_limit) {
+        make_leaf(b, node, first, count);
+        return;
+    }
+    float cand_lo[3], cand_hi[3], clo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, chi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    memcpy(cand_lo, cand_lo_in, sizeof cand_lo);
+    memcpy(cand_hi, cand_hi_in, sizeof cand_hi);
+    for (uint32_t i = first; i < first + count; ++i)
+        for (int k = 0; k < 3; ++k) {
+            const float c = centre(&b->refs[i], k);
+            if (c < clo[k]) clo[k] = c;
+            if (c > chi[k]) chi[k] = c;
+        }
+    int axis = -1;
+    float split = 0.0f;
+    float left_lo[3], left_hi[3], right_lo[3], right_hi[3];
+    if (clo[0] < chi[0] || clo[1] < chi[1] || clo[2] < chi[2]) {
+        /* The global heuristic: halve the candidate box until the plane
+         * separates the centres (the centre box decides without a pass over
+         * the objects). */
+        for (int tries = 0; tries < MAX_EMPTY_RETRIES; ++tries) {
+            int k = 0;
+            for (int j = 1; j < 3; ++j)
+                if (cand_hi[j] - cand_lo[j] > cand_hi[k] - cand_lo[k]) k = j;
+            const float s = 0.5f * (cand_lo[k] + cand_hi[k]);
+            if (!(s > cand_lo[k] && s < cand_hi[k])) break; /* cannot halve further */
+            if (chi[k] < s) { cand_hi[k] = s; continue; }    /* all left: keep the left half */
+            if (clo[k] >= s) { cand_lo[k] = s; continue; }   /* all right */
+            axis = k;
+            split = s;
+            break;
+        }
+    }
+    uint32_t mid;
+    if (axis >= 0) {
+        uint32_t i = first, j = first + count;
+        while (i < j) {
+            if (centre(&b->refs[i], axis) < split) { ++i; continue; }
+            --j;
+            const bih_ref t = b->refs[i];
+            b->refs[i] = b->refs[j];
+            b->refs[j] = t;
+        }
+        mid = i;
+        memcpy(left_lo, cand_lo, sizeof left_lo);
+        memcpy(left_hi, cand_hi, sizeof left_hi);
+        memcpy(right_lo, cand_lo, sizeof right_lo);
+        memcpy(right_hi, cand_hi, sizeof right_hi);
+        left_hi[axis] = split;
+        right_lo[axis] = split;
+    } else {
+        /* Coincident centres: halve the list on the longest axis of the
+         * candidate box; both children keep the parent's candidate box. */
+        axis = 0;
+        for (int j = 1; j < 3; ++j)
+            if (cand_hi[j] - cand_lo[j] > cand_hi[axis] - cand_lo[axis]) axis = j;
+        mid = first + count / 2;
+        memcpy(left_lo, cand_lo, sizeof left_lo);
+        memcpy(left_hi, cand_hi, sizeof left_hi);
+        memcpy(right_lo, cand_lo, sizeof right_lo);
+        memcpy(right_hi, cand_hi, sizeof right_hi);
+    }
+    float lmax = -FLT_MAX, rmin = FLT_MAX;
+    for (uint32_t i = first; i < mid; ++i)
+        if (b->refs[i].hi[axis] > lmax) lmax = b->refs[i].hi[axis];
+    for (uint32_t i = mid; i < first + count; ++i)
+        if (b->refs[i].lo[axis] < rmin) rmin = b->refs[i].lo[axis];
+    const uint64_t l = atomic_fetch_add(&b->node_next, 2);
+    if (l + 2 > b->node_capacity) { /* cannot happen: 2n - 1 nodes at most */
+        make_leaf(b, node, first, count);
+        return;
+    }
+    bih_tmp *n = &b->nodes[node];
+    n->left = (int32_t)l;
+    n->axis = (uint32_t)axis;
+    n->clip[0] = lmax;
+    n->clip[1] = rmin;
+    n->first = n->count = 0;
+    const uint32_t lcount = mid - first, rcount = first + count - mid;
+    bih_task task = {b, (int32_t)l, first, lcount, depth + 1, {0}, {0}};
+    memcpy(task.cand_lo, left_lo, sizeof task.cand_lo);
+    memcpy(task.cand_hi, left_hi, sizeof task.cand_hi);
+    pthread_t tid;
+    int spawned = 0;
+    if (lcount >= PARALLEL_MIN_PRIMS && rcount >= PARALLEL_MIN_PRIMS) {
+        if (atomic_fetch_add(&b->live_threads, 1) < b->max_threads)
+            spawned = pthread_create(&tid, NULL, build_thread, &task) == 0;
+        if (!spawned) atomic_fetch_sub(&b->live_threads, 1);
+    }
+    if (!spawned) build_node(b, (int32_t)l, first, lcount, depth + 1, left_lo, left_hi);
+    build_node(b, (int32_t)l + 1, mid, rcount, depth + 1, right_lo, right_hi);
+    if (spawned) pthread_join(tid, NULL);
+}
+
+typedef struct bih_flat {
+    const bih_builder *b;
+    as_bih_node_t *out;
+    uint64_t out_count;
+    uint32_t *prims;
+    uint32_t prim_count;
+    uint64_t leaves, empty_leaves;
+    uint32_t max_depth;
+} bih_flat;
+
+/* Writes tmp node `t` at out[o]; its children go to two adjacent slots. */
+static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth)
+{
+    const bih_tmp *n = &f->b->nodes[t];
+    as_bih_node_t *d = &f->out[o];
+    if (n->left < 0) {
+        d->info = (f->prim_count << 2) | AS_BIH_LEAF;
+        d->clip[0] = as_uint_as_float(n->count);
+        d->clip[1] = 0.0f;
+        for (uint32_t i = 0; i < n->count; ++i) f->prims[f->prim_count++] = f->b->refs[n->first + i].id;
+        if (n->count) f->leaves++; else f->empty_leaves++;
+        if (depth > f->max_depth) f->max_depth = depth;
+        return;
+    }
+    const uint64_t c = f->out_count;
+    f->out_count += 2;
+    d->info = ((uint32_t)c << 2) | n->axis;
+    d->clip[0] = n->clip[0];
+    d->clip[1] = n->clip[1];
+    flatten(f, n->left, c, depth + 1);
+    flatten(f, n->left + 1, c + 1, depth + 1);
+}
+
+as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
+{
+    const double t_start = as_now_ms();
+    if (args->max_leaf_size < 1) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "max leaf size must be at least 1");
+    if (!(args->cost_traversal >= 0.0f) || !(args->cost_intersection > 0.0f))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "SAH costs must be finite, traversal >= 0, intersection > 0");
+    if (args->layout != AS_LAYOUT_BIH)
+        return as_set_error(AS_ERROR_UNSUPPORTED, "the BIH builder writes only the bih layout");
+    bih_builder b;
+    memset(&b, 0, sizeof b);
+    b.args = args;
+    b.max_threads = (int)as_thread_count(args->thread_count) - 1;
+    /* Node depth d needs d stack entries; leaves at AS_BIH_MAX_DEPTH at most. */
+    b.depth_limit = args->max_depth && args->max_depth < AS_BIH_MAX_DEPTH ? args->max_depth : AS_BIH_MAX_DEPTH;
+    pthread_mutex_init(&b.progress_lock, NULL);
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < mesh->triangle_count; ++i) n += !as_mesh_triangle_is_degenerate(mesh, i);
+    b.total = n;
+    b.refs = as_malloc(sizeof(bih_ref) * (size_t)(n ? n : 1), "BIH references");
+    b.node_capacity = 2 * (uint64_t)n + 1;
+    b.nodes = as_malloc(sizeof(bih_tmp) * b.node_capacity, "BIH build nodes");
+    as_bih_node_t *out = NULL;
+    uint32_t *prims = NULL;
+    as_tri4_t *tris = NULL;
+    if (!b.refs || !b.nodes) goto fail;
+    if (n > AS_BIH_MAX_INDEX / 2) {
+        as_set_error(AS_ERROR_UNSUPPORTED, "%u triangles exceed the BIH layout's 30-bit indices", n);
+        goto fail;
+    }
+    float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    {
+        uint32_t k = 0;
+        for (uint32_t i = 0; i < mesh->triangle_count; ++i) {
+            if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
+            bih_ref *r = &b.refs[k++];
+            const uint32_t *ix = mesh->indices + 3 * (size_t)i;
+            for (int a = 0; a < 3; ++a) { r->lo[a] = FLT_MAX; r->hi[a] = -FLT_MAX; }
+            for (int v = 0; v < 3; ++v) {
+                const float *p = mesh->positions + 3 * (size_t)ix[v];
+                for (int a = 0; a < 3; ++a) {
+                    if (p[a] < r->lo[a]) r->lo[a] = p[a];
+                    if (p[a] > r->hi[a]) r->hi[a] = p[a];
+                }
+            }
+            r->id = i;
+            r->pad = 0.0f;
+            for (int a = 0; a < 3; ++a) {
+                if (r->lo[a] < lo[a]) lo[a] = r->lo[a];
+                if (r->hi[a] > hi[a]) hi[a] = r->hi[a];
+            }
+        }
+    }
+    if (n == 0) for (int a = 0; a < 3; ++a) lo[a] = hi[a] = 0.0f;
+    atomic_store(&b.node_next, 1);
+    build_node(&b, 0, 0, n, 0, lo, hi);
+    if (atomic_load(&b.cancelled)) {
+        as_set_error(AS_ERROR_CANCELLED, "BIH build cancelled by the progress callback");
+        goto fail;
+    }
+    const uint64_t node_count = atomic_load(&b.node_next);
+    out = as_aligned_alloc(sizeof(as_bih_node_t) * node_count, "BIH nodes");
+    prims = as_aligned_alloc(sizeof(uint32_t) * (size_t)(n ? n : 1), "BIH PRIM");
+    tris = as_spatial_tris(mesh);
+    if (!out || !prims || !tris) goto fail;
+    memset(out, 0, sizeof(as_bih_node_t) * node_count);
+    bih_flat f = {&b, out, 1, prims, 0, 0, 0, 0};
+    flatten(&f, 0, 0, 0);
+
+    as_spatial_meta(s, mesh, args, AS_STRUCT_BIH, AS_LAYOUT_BIH, AS_BIH_LAYOUT_VERSION, AS_BUILDER_BIH);
+    s->meta.node_count = f.out_count - f.leaves - f.empty_leaves;
+    s->meta.leaf_count = f.leaves;
+    s->meta.empty_leaf_count = f.empty_leaves;
+    s->meta.reference_count = f.prim_count;
+    s->meta.max_depth = f.max_depth;
+    s->meta.max_depth_limit = b.depth_limit;
+    as_structure_add_section(s, ASF_TAG_BIHN, out, f.out_count, sizeof(as_bih_node_t));
+    as_structure_add_section(s, ASF_TAG_PRIM, prims, f.prim_count, sizeof(uint32_t));
+    as_structure_add_section(s, ASF_TAG_TRIS, tris, mesh->triangle_count, sizeof(as_tri4_t));
+    s->meta.sah_cost = as_bih_sah_cost(s, NULL);
+    s->build_ms = as_now_ms() - t_start;
+    free(b.refs);
+    free(b.nodes);
+    pthread_mutex_destroy(&b.progress_lock);
+    return AS_OK;
+fail:
+    free(b.refs);
+    free(b.nodes);
+    free(out);
+    free(prims);
+    free(tris);
+    pthread_mutex_destroy(&b.progress_lock);
+    return as_get_error();
+}

@@ -1,0 +1,304 @@
+/* Uniform grid builder. Resolution (Cleary & Wyvill 1988; Wald et al. 2006):
+ * cells per axis = extent along the axis x cbrt(lambda N / volume), lambda =
+ * args->grid_lambda (cells per triangle), rounded, at least 1 per axis.
+ * Axes of (nearly) zero extent (a flat scene) get one cell and are left out
+ * of the volume: on k remaining axes the k-th root of lambda N over their
+ * k-dimensional measure is used instead. The total is capped at
+ * AS_GRID_MAX_CELLS, and the resolution is lowered (x 0.8 per axis, repeated)
+ * while the references would exceed split_budget x N.
+ *
+ * Each triangle goes to every cell its box covers that it overlaps (exact
+ * triangle/box test, Akenine-Moller 2001, with a few-ulp pad). Build in
+ * parallel passes over fixed blocks of triangles: count per cell (atomic
+ * adds: the totals do not depend on the order), a sequential prefix sum
+ * into GRDC, fill (atomic cursors), then sort each cell's list in parallel,
+ * so PRIM is the same whatever the thread count. */
+#include "spatial_common.h"
+#include "grid_layout.h"
+
+#include <float.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Plain comparisons: libm's fminf is a call without -ffinite-math-only. */
+static inline float min3f(float a, float b, float c) { const float m = a < b ? a : b; return m < c ? m : c; }
+static inline float max3f(float a, float b, float c) { const float m = a > b ? a : b; return m > c ? m : c; }
+
+#define BLOCK 2048
+
+typedef struct grid_job {
+    const as_mesh_t *mesh;
+    const as_grid_header_t *g;
+    const uint8_t *skip;          /* zero-area triangles */
+    atomic_uint *counts;          /* pass 1: per cell; pass 2: cursors */
+    uint32_t *prims;              /* pass 2 */
+    atomic_uint_fast64_t refs;
+    const as_build_args_t *args;
+    pthread_mutex_t lock;
+    atomic_int cancelled;
+    atomic_uint_fast64_t done;
+    uint64_t total;
+    int pass;
+    double pad;                   /* 4 x as_spatial_pad of the grid box */
+    double budget;                /* most references allowed */
+    atomic_int over;              /* pass 1 found more than the budget */
+} grid_job;
+
+/* The box of cell index i on axis k: the same expressions as the traversal. */
+static float wall(const as_grid_header_t *g, int k, uint32_t i)
+{
+    return i >= g->dims[k] ? g->hi[k] : g->lo[k] + (float)i * g->cell[k];
+}
+
+static uint32_t clamp_cell(const as_grid_header_t *g, int k, double x)
+{
+    const double f = (x - g->lo[k]) * g->inv_cell[k];
+    if (!(f > 0)) return 0;
+    if (f >= g->dims[k]) return g->dims[k] - 1;
+    return (uint32_t)f;
+}
+
+static void grid_block(void *user, size_t block)
+{
+    grid_job *job = user;
+    if (atomic_load(&job->cancelled)) return;
+    const as_mesh_t *m = job->mesh;
+    const as_grid_header_t *g = job->g;
+    const uint32_t begin = (uint32_t)(block * BLOCK);
+    const uint32_t end = begin + BLOCK < m->triangle_count ? begin + BLOCK : m->triangle_count;
+    uint64_t local_refs = 0;
+    for (uint32_t t = begin; t < end; ++t) {
+        if (job->skip[t]) continue;
+        /* Pass 1 stops as soon as the budget is exceeded: the total would
+         * exceed it too, whatever the order. */
+        if (job->pass == 1 && (t & 63) == 0) {
+            if (atomic_load(&job->over)) return;
+            if ((double)(atomic_load(&job->refs) + local_refs) > job->budget) { atomic_store(&job->over, 1); return; }
+        }
+        const uint32_t *ix = m->indices + 3 * (size_t)t;
+        const float *a = m->positions + 3 * (size_t)ix[0], *b = m->positions + 3 * (size_t)ix[1],
+                    *c = m->positions + 3 * (size_t)ix[2];
+        uint32_t c0[3], c1[3];
+        int single = 1;
+        for (int k = 0; k < 3; ++k) {
+            const float lo = min3f(a[k], b[k], c[k]), hi = max3f(a[k], b[k], c[k]);
+            /* The cells the box reaches, grown by the pad (which bounds every
+             * cell's pad and the rounding of the walls). */
+            c0[k] = clamp_cell(g, k, (double)lo - job->pad);
+            c1[k] = clamp_cell(g, k, (double)hi + job->pad);
+            single &= c0[k] == c1[k];
+        }
+        for (uint32_t z = c0[2]; z <= c1[2]; ++z)
+            for (uint32_t y = c0[1]; y <= c1[1]; ++y)
+                for (uint32_t x = c0[0]; x <= c1[0]; ++x) {
+                    const float lo[3] = {wall(g, 0, x), wall(g, 1, y), wall(g, 2, z)};
+                    const float hi[3] = {wall(g, 0, x + 1), wall(g, 1, y + 1), wall(g, 2, z + 1)};
+                    /* A box within one cell overlaps it: no test. */
+                    if (!single && !as_tri_box_overlap(a, b, c, lo, hi, as_spatial_pad(lo, hi))) continue;
+                    const size_t cell = ((size_t)z * g->dims[1] + y) * g->dims[0] + x;
+                    if (job->pass == 1) {
+                        atomic_fetch_add_explicit(&job->counts[cell], 1, memory_order_relaxed);
+                        ++local_refs;
+                    } else {
+                        const uint32_t at = atomic_fetch_add_explicit(&job->counts[cell], 1, memory_order_relaxed);
+                        job->prims[at] = t;
+                    }
+                }
+    }
+    if (job->pass == 1) atomic_fetch_add(&job->refs, local_refs);
+    const uint64_t done = atomic_fetch_add(&job->done, end - begin) + (end - begin);
+    if (job->args->progress) {
+        pthread_mutex_lock(&job->lock);
+        if (!atomic_load(&job->cancelled) &&
+            !job->args->progress(job->args->progress_user, 0.5 * (double)done / (double)job->total + 0.5 * (job->pass - 1)))
+            atomic_store(&job->cancelled, 1);
+        pthread_mutex_unlock(&job->lock);
+    }
+}
+
+typedef struct sort_job {
+    const uint32_t *offsets;
+    uint32_t *prims;
+    uint64_t cells;
+} sort_job;
+
+static int cmp_u32(const void *a, const void *b)
+{
+    const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+#define SORT_BLOCK 4096
+static void sort_cells(void *user, size_t block)
+{
+    const sort_job *job = user;
+    const uint64_t begin = block * SORT_BLOCK, end = begin + SORT_BLOCK < job->cells ? begin + SORT_BLOCK : job->cells;
+    for (uint64_t c = begin; c < end; ++c) {
+        const uint32_t a = job->offsets[c], b = job->offsets[c + 1];
+        if (b - a > 1) qsort(job->prims + a, b - a, sizeof(uint32_t), cmp_u32);
+    }
+}
+
+/* Cells per axis for a scale factor (cells per unit length). */
+static void dims_for(const double ext[3], const int active[3], double s, uint32_t dims[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        double d = active[k] ? floor(ext[k] * s + 0.5) : 1.0;
+        if (d < 1) d = 1;
+        if (d > AS_GRID_MAX_CELLS) d = AS_GRID_MAX_CELLS;
+        dims[k] = (uint32_t)d;
+    }
+}
+
+as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
+{
+    const double t_start = as_now_ms();
+    if (!(args->grid_lambda > 0.0f) || !isfinite(args->grid_lambda))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "grid lambda must be positive and finite");
+    if (!(args->split_budget >= 1.0f))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "split budget must be at least 1");
+    if (!(args->cost_traversal >= 0.0f) || !(args->cost_intersection > 0.0f))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "SAH costs must be finite, traversal >= 0, intersection > 0");
+    if (args->layout != AS_LAYOUT_GRID)
+        return as_set_error(AS_ERROR_UNSUPPORTED, "the grid builder writes only the grid layout");
+    const unsigned threads = as_thread_count(args->thread_count);
+    const uint32_t nt = mesh->triangle_count;
+    uint8_t *skip = malloc(nt ? nt : 1);
+    if (!skip) return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build");
+    uint32_t n = 0;
+    float blo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, bhi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    for (uint32_t i = 0; i < nt; ++i) {
+        skip[i] = (uint8_t)as_mesh_triangle_is_degenerate(mesh, i);
+        if (skip[i]) continue;
+        ++n;
+        for (int v = 0; v < 3; ++v) {
+            const float *q = mesh->positions + 3 * (size_t)mesh->indices[3 * (size_t)i + v];
+            for (int k = 0; k < 3; ++k) {
+                if (q[k] < blo[k]) blo[k] = q[k];
+                if (q[k] > bhi[k]) bhi[k] = q[k];
+            }
+        }
+    }
+    if (n == 0) for (int k = 0; k < 3; ++k) { blo[k] = 0.0f; bhi[k] = 0.0f; }
+    as_grid_header_t *g = as_aligned_alloc(sizeof *g, "grid header");
+    uint32_t *offsets = NULL, *prims = NULL;
+    as_tri4_t *tris = NULL;
+    atomic_uint *counts = NULL;
+    as_error_t err = AS_OK;
+    grid_job job;
+    memset(&job, 0, sizeof job);
+    pthread_mutex_init(&job.lock, NULL);
+    if (!g) { err = as_get_error(); goto done; }
+    memset(g, 0, sizeof *g);
+    double ext[3], maxext = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        g->lo[k] = blo[k];
+        g->hi[k] = bhi[k];
+        ext[k] = (double)bhi[k] - blo[k];
+        if (ext[k] > maxext) maxext = ext[k];
+    }
+    /* An axis thinner than 1e-6 of the largest extent counts as flat. */
+    int active[3], nactive = 0;
+    double measure = 1.0;
+    for (int k = 0; k < 3; ++k) {
+        active[k] = maxext > 0 && ext[k] > 1e-6 * maxext;
+        if (active[k]) { ++nactive; measure *= ext[k]; }
+    }
+    double scale = nactive ? pow((double)args->grid_lambda * (double)(n ? n : 1) / measure, 1.0 / nactive) : 0.0;
+    const double budget = (double)args->split_budget * (double)(n ? n : 1);
+    job.mesh = mesh;
+    job.g = g;
+    job.skip = skip;
+    job.args = args;
+    job.total = 2 * (uint64_t)(nt ? nt : 1);
+    job.pad = 4.0 * as_spatial_pad(g->lo, g->hi);
+    job.budget = budget < (double)0xFFFFFFF0u ? budget : (double)0xFFFFFFF0u;
+    const size_t blocks = (nt + BLOCK - 1) / BLOCK;
+    uint64_t cells = 1;
+    for (;;) {
+        dims_for(ext, active, scale, g->dims);
+        cells = (uint64_t)g->dims[0] * g->dims[1] * g->dims[2];
+        if (cells > AS_GRID_MAX_CELLS) {
+            scale *= pow((double)AS_GRID_MAX_CELLS / (double)cells, 1.0 / (nactive ? nactive : 1)) * 0.999;
+            continue;
+        }
+        for (int k = 0; k < 3; ++k) {
+            g->cell[k] = active[k] ? (float)(ext[k] / g->dims[k]) : 0.0f;
+            g->inv_cell[k] = active[k] ? (float)(g->dims[k] / ext[k]) : 0.0f;
+            if (!active[k]) g->dims[k] = 1;
+        }
+        free(counts);
+        counts = calloc(cells, sizeof(atomic_uint));
+        if (!counts) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for %llu grid cells", (unsigned long long)cells); goto done; }
+        job.counts = counts;
+        job.pass = 1;
+        atomic_store(&job.over, 0);
+        atomic_store(&job.refs, 0);
+        atomic_store(&job.done, 0);
+        as_parallel_for(threads, blocks, grid_block, &job);
+        if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
+        const uint64_t refs = atomic_load(&job.refs);
+        if (!atomic_load(&job.over) && (double)refs <= job.budget) break;
+        if (cells == 1) {
+            /* One cell holds every triangle once: within any budget >= 1. */
+            err = as_set_error(AS_ERROR_UNSUPPORTED, "grid references exceed 32 bits");
+            goto done;
+        }
+        /* Too many references: coarser. The 0.8 keeps the grid as fine as
+         * the budget allows, to within a factor 0.8 per axis. */
+        scale *= 0.8;
+    }
+    offsets = as_aligned_alloc(sizeof(uint32_t) * (cells + 1), "grid cell offsets");
+    const uint64_t refs = atomic_load(&job.refs);
+    prims = as_aligned_alloc(sizeof(uint32_t) * (refs ? refs : 1), "grid PRIM");
+    tris = as_spatial_tris(mesh);
+    if (!offsets || !prims || !tris) { err = as_get_error(); goto done; }
+    /* The prefix sum, sequential: one pass over the cells. */
+    uint64_t sum = 0, nonempty = 0;
+    for (uint64_t c = 0; c < cells; ++c) {
+        const uint32_t k = atomic_load_explicit(&counts[c], memory_order_relaxed);
+        offsets[c] = (uint32_t)sum;
+        atomic_store_explicit(&counts[c], (unsigned)sum, memory_order_relaxed);
+        sum += k;
+        nonempty += k != 0;
+    }
+    offsets[cells] = (uint32_t)sum;
+    job.pass = 2;
+    job.prims = prims;
+    atomic_store(&job.done, 0);
+    as_parallel_for(threads, blocks, grid_block, &job);
+    if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
+    sort_job sj = {offsets, prims, cells};
+    as_parallel_for(threads, (cells + SORT_BLOCK - 1) / SORT_BLOCK, sort_cells, &sj);
+
+    as_spatial_meta(s, mesh, args, AS_STRUCT_GRID, AS_LAYOUT_GRID, AS_GRID_LAYOUT_VERSION, AS_BUILDER_GRID);
+    s->meta.node_count = 0;
+    s->meta.leaf_count = nonempty;
+    s->meta.empty_leaf_count = cells - nonempty;
+    s->meta.reference_count = sum;
+    s->meta.max_depth = 0;
+    s->meta.max_depth_limit = 0;
+    s->meta.grid_lambda = args->grid_lambda;
+    s->meta.split_budget = args->split_budget;
+    as_structure_add_section(s, ASF_TAG_GRDH, g, 1, sizeof *g);
+    as_structure_add_section(s, ASF_TAG_GRDC, offsets, cells + 1, sizeof(uint32_t));
+    as_structure_add_section(s, ASF_TAG_PRIM, prims, sum, sizeof(uint32_t));
+    as_structure_add_section(s, ASF_TAG_TRIS, tris, nt, sizeof(as_tri4_t));
+    g = NULL;
+    offsets = prims = NULL;
+    tris = NULL;
+    s->meta.sah_cost = as_grid_sah_cost(s, NULL);
+    s->build_ms = as_now_ms() - t_start;
+done:
+    pthread_mutex_destroy(&job.lock);
+    free(skip);
+    free(counts);
+    free(g);
+    free(offsets);
+    free(prims);
+    free(tris);
+    return err;
+}

@@ -1,0 +1,144 @@
+/* Shared parts of the BIH, octree and grid builders and validators. */
+#include "spatial_common.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+as_tri4_t *as_spatial_tris(const as_mesh_t *mesh)
+{
+    const uint32_t n = mesh->triangle_count;
+    as_tri4_t *tris = as_aligned_alloc(sizeof(as_tri4_t) * (size_t)(n ? n : 1), "TRIS triangles");
+    if (!tris) return NULL;
+    const float *p = mesh->positions;
+    for (uint32_t i = 0; i < n; ++i) {
+        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
+        const float *a = p + 3 * (size_t)ix[0], *b = p + 3 * (size_t)ix[1], *c = p + 3 * (size_t)ix[2];
+        tris[i].v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(i)};
+        tris[i].v1 = (as_f4_t){b[0], b[1], b[2], 0.0f};
+        tris[i].v2 = (as_f4_t){c[0], c[1], c[2], 0.0f};
+    }
+    return tris;
+}
+
+double as_spatial_pad(const float lo[3], const float hi[3])
+{
+    double m = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        if (fabs((double)lo[k]) > m) m = fabs((double)lo[k]);
+        if (fabs((double)hi[k]) > m) m = fabs((double)hi[k]);
+    }
+    /* 2^-20: eight ulps of the largest coordinate. */
+    return m * 0x1p-20 + 1e-30;
+}
+
+double as_spatial_half_area(const float lo[3], const float hi[3])
+{
+    const double dx = (double)hi[0] - lo[0], dy = (double)hi[1] - lo[1], dz = (double)hi[2] - lo[2];
+    if (!(dx >= 0 && dy >= 0 && dz >= 0)) return 0.0;
+    return dx * dy + dy * dz + dz * dx;
+}
+
+/* Akenine-Moller's test: the 13 separating axes (3 box normals, the
+ * triangle normal, 9 edge cross products), triangle moved to the box
+ * centre. */
+static int axis_separates(double p0, double p1, double p2, double r)
+{
+    double mn = p0, mx = p0;
+    if (p1 < mn) mn = p1;
+    if (p1 > mx) mx = p1;
+    if (p2 < mn) mn = p2;
+    if (p2 > mx) mx = p2;
+    return mn > r || mx < -r;
+}
+
+int as_tri_box_overlap(const float *a, const float *b, const float *c, const float lo[3], const float hi[3],
+                       double pad)
+{
+    double ctr[3], h[3], v[3][3];
+    for (int k = 0; k < 3; ++k) {
+        ctr[k] = 0.5 * ((double)lo[k] + (double)hi[k]);
+        h[k] = 0.5 * ((double)hi[k] - (double)lo[k]) + pad;
+        v[0][k] = (double)a[k] - ctr[k];
+        v[1][k] = (double)b[k] - ctr[k];
+        v[2][k] = (double)c[k] - ctr[k];
+    }
+    /* Box normals: the triangle's box against the box. */
+    for (int k = 0; k < 3; ++k)
+        if (axis_separates(v[0][k], v[1][k], v[2][k], h[k])) return 0;
+    double e[3][3];
+    for (int k = 0; k < 3; ++k) {
+        e[0][k] = v[1][k] - v[0][k];
+        e[1][k] = v[2][k] - v[1][k];
+        e[2][k] = v[0][k] - v[2][k];
+    }
+    /* Edge x box-axis cross products. */
+    for (int i = 0; i < 3; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            /* axis = unit_k x e_i */
+            double ax[3] = {0, 0, 0};
+            const int k1 = (k + 1) % 3, k2 = (k + 2) % 3;
+            ax[k1] = -e[i][k2];
+            ax[k2] = e[i][k1];
+            const double p0 = ax[0] * v[0][0] + ax[1] * v[0][1] + ax[2] * v[0][2];
+            const double p1 = ax[0] * v[1][0] + ax[1] * v[1][1] + ax[2] * v[1][2];
+            const double p2 = ax[0] * v[2][0] + ax[1] * v[2][1] + ax[2] * v[2][2];
+            const double r = h[0] * fabs(ax[0]) + h[1] * fabs(ax[1]) + h[2] * fabs(ax[2]);
+            /* Grown by a relative hair: the products above round. */
+            if (axis_separates(p0, p1, p2, r * (1.0 + 1e-12) + 1e-300)) return 0;
+        }
+    }
+    /* The triangle's plane. */
+    const double nx = e[0][1] * e[1][2] - e[0][2] * e[1][1];
+    const double ny = e[0][2] * e[1][0] - e[0][0] * e[1][2];
+    const double nz = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+    const double d = nx * v[0][0] + ny * v[0][1] + nz * v[0][2];
+    const double r = h[0] * fabs(nx) + h[1] * fabs(ny) + h[2] * fabs(nz);
+    if (fabs(d) > r * (1.0 + 1e-12) + 1e-300) return 0;
+    return 1;
+}
+
+void as_spatial_meta(as_structure_t *s, const as_mesh_t *mesh, const as_build_args_t *args, uint32_t kind,
+                     uint32_t layout, uint32_t layout_version, uint32_t builder)
+{
+    memset(&s->meta, 0, sizeof s->meta);
+    snprintf(s->meta.writer, sizeof s->meta.writer, "libas");
+    s->meta.writer_version = AS_VERSION_NUMBER;
+    s->meta.structure_kind = kind;
+    s->meta.layout = layout;
+    s->meta.layout_version = layout_version;
+    s->meta.builder = builder;
+    s->meta.max_leaf_size = args->max_leaf_size;
+    s->meta.cost_traversal = args->cost_traversal;
+    s->meta.cost_intersection = args->cost_intersection;
+    s->meta.triangle_count = mesh->triangle_count;
+    s->meta.source_hash = mesh->hash;
+    memcpy(s->meta.bounds_lo, mesh->bounds_lo, sizeof s->meta.bounds_lo);
+    memcpy(s->meta.bounds_hi, mesh->bounds_hi, sizeof s->meta.bounds_hi);
+}
+
+as_error_t as_spatial_validate_tris(const as_structure_t *s, const char *name, const as_section_t *ts,
+                                    const as_section_t *ps)
+{
+    const as_tri4_t *tris = ts->data;
+    if (ts->count != s->meta.triangle_count)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRIS holds %llu triangles but META says the mesh has %u",
+                            name, (unsigned long long)ts->count, s->meta.triangle_count);
+    for (uint64_t i = 0; i < ts->count; ++i) {
+        const as_tri4_t *t = &tris[i];
+        const float f[9] = {t->v0.x, t->v0.y, t->v0.z, t->v1.x, t->v1.y, t->v1.z, t->v2.x, t->v2.y, t->v2.z};
+        for (int k = 0; k < 9; ++k)
+            if (!isfinite(f[k]))
+                return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRIS triangle %llu has a non-finite vertex", name,
+                                    (unsigned long long)i);
+        if (as_float_as_uint(t->v0.w) != (uint32_t)i)
+            return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRIS triangle %llu says it is source triangle %u",
+                                name, (unsigned long long)i, as_float_as_uint(t->v0.w));
+    }
+    const uint32_t *prims = ps->data;
+    for (uint64_t i = 0; i < ps->count; ++i)
+        if (prims[i] >= ts->count)
+            return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: PRIM entry %llu refers to triangle %u of %llu", name,
+                                (unsigned long long)i, prims[i], (unsigned long long)ts->count);
+    return AS_OK;
+}

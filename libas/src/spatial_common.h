@@ -1,0 +1,42 @@
+/* What the BIH, octree and grid builders share: the TRIS section (one
+ * as_tri4_t per source triangle, in source order), the exact triangle/box
+ * overlap test, and META's common fields. */
+#ifndef AS_SPATIAL_COMMON_H
+#define AS_SPATIAL_COMMON_H
+
+#include "structure.h"
+#include "mesh.h"
+#include "bvh2_layout.h"
+
+/* TRIS: entry i is source triangle i with v0.w = i (uint32 bits); zero-area
+ * triangles are present but no structure refers to them. NULL (error set)
+ * when out of memory. */
+as_tri4_t *as_spatial_tris(const as_mesh_t *mesh);
+
+/* Whether triangle (a, b, c) overlaps the closed box [lo, hi] grown by
+ * `pad` on every side: the separating-axis test of Akenine-Moller 2001
+ * ("Fast 3D triangle-box overlap testing"), in double. The pad keeps the
+ * test conservative against the float rounding of the traversals' cell
+ * walls and entry points; it adds references only for triangles that pass
+ * within `pad` of a cell. */
+int as_tri_box_overlap(const float *a, const float *b, const float *c, const float lo[3], const float hi[3],
+                       double pad);
+
+/* The pad the octree and grid use around a cell with these corners: a few
+ * float ulps of the largest coordinate involved. */
+double as_spatial_pad(const float lo[3], const float hi[3]);
+
+/* Fills META's writer, kind, layout, builder, parameters, source and bounds. */
+void as_spatial_meta(as_structure_t *s, const as_mesh_t *mesh, const as_build_args_t *args, uint32_t kind,
+                     uint32_t layout, uint32_t layout_version, uint32_t builder);
+
+/* Half the surface area of a box, in double (SAH ratios). */
+double as_spatial_half_area(const float lo[3], const float hi[3]);
+
+/* Checks shared by the validators: TRIS holds META.triangle_count finite
+ * entries with v0.w = their index, and every PRIM entry is inside TRIS. (A
+ * reference to a zero-area triangle would be harmless: it is never hit.) */
+as_error_t as_spatial_validate_tris(const as_structure_t *s, const char *name, const as_section_t *tris,
+                                    const as_section_t *prims);
+
+#endif
