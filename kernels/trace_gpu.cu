@@ -2,6 +2,9 @@
 // The algorithm lives in the header; this file moves data, schedules rays
 // and times launches.
 #include "bvh2_traverse.h"
+#include "bih_traverse.h"
+#include "grid_traverse.h"
+#include "octree_traverse.h"
 #include "trace_gpu.h"
 
 #include <cuda_runtime.h>
@@ -36,6 +39,38 @@ struct bvh2_traversal {
     __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
     {
         as_bvh2_trace(nodes, tris, r, any_hit, h, c);
+    }
+};
+
+struct bih_traversal {
+    const as_bih_node_t *nodes;
+    const uint32_t *prims;
+    const as_tri4_t *tris;
+    float lo[3], hi[3];
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_bih_trace(nodes, prims, tris, lo, hi, r, any_hit, h, c);
+    }
+};
+
+struct grid_traversal {
+    const as_grid_header_t *header;
+    const uint32_t *offsets, *prims;
+    const as_tri4_t *tris;
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_grid_trace(header, offsets, prims, tris, r, any_hit, h, c);
+    }
+};
+
+struct octree_traversal {
+    const as_octree_header_t *header;
+    const as_octree_node_t *nodes;
+    const uint32_t *prims;
+    const as_tri4_t *tris;
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_octree_trace(header, nodes, prims, tris, r, any_hit, h, c);
     }
 };
 
@@ -356,12 +391,30 @@ done:
 
 } // namespace
 
-extern "C" as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
-                                   as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
+extern "C" as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const float bounds_lo[3],
+                                   const float bounds_hi[3], const as_ray_t *rays, size_t count, as_hit_t *hits,
+                                   const as_gpu_launch_t *launch, as_trace_timing_t *timing)
 {
+    // Device pointers come in the layout's section order (its ops table).
     switch (layout) {
     case AS_LAYOUT_BVH2_CHILD_BOUNDS: {
         const bvh2_traversal t = {(const as_bvh2_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    case AS_LAYOUT_BIH: {
+        bih_traversal t = {(const as_bih_node_t *)g->device[0], (const uint32_t *)g->device[1],
+                           (const as_tri4_t *)g->device[2], {0, 0, 0}, {0, 0, 0}};
+        for (int k = 0; k < 3; ++k) { t.lo[k] = bounds_lo[k]; t.hi[k] = bounds_hi[k]; }
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    case AS_LAYOUT_GRID: {
+        const grid_traversal t = {(const as_grid_header_t *)g->device[0], (const uint32_t *)g->device[1],
+                                  (const uint32_t *)g->device[2], (const as_tri4_t *)g->device[3]};
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    case AS_LAYOUT_OCTREE: {
+        const octree_traversal t = {(const as_octree_header_t *)g->device[0], (const as_octree_node_t *)g->device[1],
+                                    (const uint32_t *)g->device[2], (const as_tri4_t *)g->device[3]};
         return launch_traversal(t, g, rays, count, hits, launch, timing);
     }
     default:

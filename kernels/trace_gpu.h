@@ -46,8 +46,9 @@ uint64_t as_gpu_free_memory(void);
  * order), and copies the hits back. timing->trace_ms is the median of the
  * timed launches (CUDA events around the kernel alone).
  * AS_ERROR_UNSUPPORTED for a layout without a kernel. */
-as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
-                        as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing);
+as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const float bounds_lo[3],
+                        const float bounds_hi[3], const as_ray_t *rays, size_t count, as_hit_t *hits,
+                        const as_gpu_launch_t *launch, as_trace_timing_t *timing);
 
 #ifdef __cplusplus
 }

@@ -83,20 +83,44 @@ static void zero_copy_residency_gives_the_same_hits(const char *path, size_t n)
     unlink(file);
 }
 
+/* Every variant this build has, by its names. */
+static const char *const variants[][3] = {
+    {"bvh", "sah", "bvh2-child-bounds"},  {"bvh", "midcut", "bvh2-child-bounds"},
+    {"bvh", "sweep", "bvh2-child-bounds"}, {"bvh", "sbvh", "bvh2-child-bounds"},
+    {"bvh", "sah", "bvh2-own-bounds"},    {"kd", "midcut", "kd-standard"},
+    {"kd", "sah", "kd-standard"},         {"kd", "midcut", "kd-ropes"},
+    {"kd", "sah", "kd-ropes"},            {"bih", "bih", "bih"},
+    {"octree", "octree", "octree"},       {"grid", "grid", "grid"},
+};
+
 static void gpu_hits_equal_cpu_hits(const char *path, size_t n)
 {
     as_mesh_t *m = as_mesh_import(path);
     if (!m) fprintf(stderr, "import failed: %s\n", as_get_error_message());
     CHECK(m != NULL);
     if (!m) return;
-    as_structure_t *s = as_structure_build(m, NULL);
-    CHECK(s != NULL);
     as_ray_t *rays = malloc(sizeof *rays * n);
     ref_make_scene_rays(m, n, 31337, rays);
-    trace_both(s, rays, n, 0, path);
-    trace_both(s, rays, n, 1, path);
+    for (size_t v = 0; v < sizeof variants / sizeof variants[0]; ++v) {
+        as_build_args_t args;
+        as_build_args_default(&args);
+        args.structure = as_structure_kind_from_name(variants[v][0]);
+        args.builder = as_builder_from_name(args.structure, variants[v][1]);
+        args.layout = as_layout_from_name(variants[v][2]);
+        as_structure_t *s = as_structure_build(m, &args);
+        char what[512];
+        snprintf(what, sizeof what, "%s %s/%s/%s", path, variants[v][0], variants[v][1], variants[v][2]);
+        if (!s && as_get_error() == AS_ERROR_UNSUPPORTED) {
+            fprintf(stderr, "  %s: not in this build\n", what);
+            continue;
+        }
+        CHECK(s != NULL);
+        if (!s) continue;
+        trace_both(s, rays, n, 0, what);
+        trace_both(s, rays, n, 1, what);
+        as_structure_release(s);
+    }
     free(rays);
-    as_structure_release(s);
     as_mesh_release(m);
 }
 

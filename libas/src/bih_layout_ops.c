@@ -105,4 +105,7 @@ const as_layout_ops_t as_layout_bih = {
     .validate = as_bih_validate,
     .stats = bih_stats,
     .trace_cpu = bih_trace_cpu,
+#ifdef AS_HAVE_CUDA
+    .trace_gpu = as_layout_trace_gpu,
+#endif
 };

@@ -84,15 +84,6 @@ static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit
     }
 }
 
-#ifdef AS_HAVE_CUDA
-static as_error_t bvh2_trace_gpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
-                                 const as_gpu_launch_t *launch, as_trace_timing_t *timing)
-{
-    if (as_structure_find(s, ASF_TAG_BVH2)->count == 0)
-        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "BVH2 section has no root node");
-    return as_trace_gpu(AS_LAYOUT_BVH2_CHILD_BOUNDS, s->gpu, rays, count, hits, launch, timing);
-}
-#endif
 
 const as_layout_ops_t as_layout_bvh2_child_bounds = {
     .structure_kind = AS_STRUCT_BVH,
@@ -109,6 +100,6 @@ const as_layout_ops_t as_layout_bvh2_child_bounds = {
     .stats = bvh2_stats,
     .trace_cpu = bvh2_trace_cpu,
 #ifdef AS_HAVE_CUDA
-    .trace_gpu = bvh2_trace_gpu,
+    .trace_gpu = as_layout_trace_gpu,
 #endif
 };

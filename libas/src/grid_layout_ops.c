@@ -85,4 +85,7 @@ const as_layout_ops_t as_layout_grid = {
     .validate = as_grid_validate,
     .stats = grid_stats,
     .trace_cpu = grid_trace_cpu,
+#ifdef AS_HAVE_CUDA
+    .trace_gpu = as_layout_trace_gpu,
+#endif
 };

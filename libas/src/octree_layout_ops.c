@@ -85,4 +85,7 @@ const as_layout_ops_t as_layout_octree = {
     .validate = as_octree_validate,
     .stats = octree_stats,
     .trace_cpu = octree_trace_cpu,
+#ifdef AS_HAVE_CUDA
+    .trace_gpu = as_layout_trace_gpu,
+#endif
 };

@@ -104,6 +104,11 @@ const as_layout_ops_t *as_structure_ops(const as_structure_t *s);
 
 extern const as_layout_ops_t as_layout_bvh2_child_bounds;
 
+/* The trace_gpu of every layout with a CUDA kernel: launches the kernel of
+ * s->meta.layout over the resident sections. */
+as_error_t as_layout_trace_gpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                               const struct as_gpu_launch *launch, as_trace_timing_t *timing);
+
 /* Builders: fill s->meta (kind, layout, parameters, counts) and sections. */
 as_error_t as_bvh_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
 

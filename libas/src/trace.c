@@ -57,6 +57,15 @@ static as_error_t upload(const as_structure_t *s, const as_trace_args_t *args)
 }
 #endif
 
+#ifdef AS_HAVE_CUDA
+as_error_t as_layout_trace_gpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                               const as_gpu_launch_t *launch, as_trace_timing_t *timing)
+{
+    return as_trace_gpu(s->meta.layout, s->gpu, s->meta.bounds_lo, s->meta.bounds_hi, rays, count, hits, launch,
+                        timing);
+}
+#endif
+
 as_error_t as_structure_upload(const as_structure_t *s, const as_trace_args_t *user_args, as_upload_info_t *info)
 {
     if (!s) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_upload: NULL structure");
