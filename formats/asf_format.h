@@ -21,6 +21,7 @@
 #define ASF_TAG_META ASF_TAG('M', 'E', 'T', 'A') /* as_meta_t, required */
 #define ASF_TAG_BVH2 ASF_TAG('B', 'V', 'H', '2') /* as_bvh2_node_t[], child-bounds layout */
 #define ASF_TAG_TRI4 ASF_TAG('T', 'R', 'I', '4') /* as_tri4_t[], triangles in leaf order */
+#define ASF_TAG_BVHO ASF_TAG('B', 'V', 'H', 'O') /* as_bvh2o_node_t[], own-bounds layout */
 
 /* Section flags. */
 #define ASF_SECTION_REQUIRED 0x1u   /* a reader that does not know the tag must refuse */

@@ -89,6 +89,9 @@ typedef struct as_builder_entry {
 
 static const as_builder_entry_t builders[] = {
     {AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sah", as_bvh_build_sah},
+    {AS_STRUCT_BVH, AS_BUILDER_BVH_MIDCUT, AS_LAYOUT_BVH2_CHILD_BOUNDS, "midcut", as_bvh_build_midcut},
+    {AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_SWEEP, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sweep", as_bvh_build_sweep},
+    {AS_STRUCT_BVH, AS_BUILDER_BVH_SBVH, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sbvh", as_bvh_build_sbvh},
 };
 
 /* The kind's first builder stands for AS_BUILDER_DEFAULT. */
@@ -192,6 +195,7 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
 
 static const as_layout_ops_t *const layouts[] = {
     &as_layout_bvh2_child_bounds,
+    &as_layout_bvh2_own_bounds,
 };
 
 const as_layout_ops_t *as_layout_find(uint32_t structure_kind, uint32_t layout)
