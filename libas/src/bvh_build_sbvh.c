@@ -312,9 +312,9 @@ static void sbvh_recursive(sbvh_ctx *ctx, int32_t node, bvh_ref *refs, uint32_t 
             ov.hi[a] = lb.hi[a] < rb.hi[a] ? lb.hi[a] : rb.hi[a];
         }
         if (box_valid(&ov) && bvh_box_half_area(&ov) > ctx->alpha_area) ss = find_spatial_split(b, refs, count, &node_box);
-    } else if (os.axis < 0 && budget > 0) {
-        ss = find_spatial_split(b, refs, count, &node_box);
     }
+    /* Where every centroid coincides (copies of one triangle) no spatial
+     * split is tried: it would only duplicate the copies. */
     int use_spatial = ss.axis >= 0 && ss.cost < best_cost && (uint64_t)ss.nl + ss.nr - count <= budget;
     if (use_spatial) best_cost = ss.cost;
     const double split_cost = area > 0 ? ct + ci * best_cost / area : ct + ci * (double)count;
