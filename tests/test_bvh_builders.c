@@ -158,6 +158,26 @@ static void copies_of_one_triangle_stay_shallow_and_hit_the_lowest_index(void)
     as_mesh_release(m);
 }
 
+static void the_depth_cap_argument_is_honoured(void)
+{
+    as_mesh_t *m = small_triangle_soup(5000, 3);
+    as_build_args_t args = variant;
+    args.max_depth = 6;
+    as_structure_t *s = as_structure_build(m, &args);
+    CHECK(s != NULL);
+    if (s) {
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+        as_structure_stats_t st;
+        CHECK_EQ_INT(as_structure_get_stats(s, &st), AS_OK);
+        CHECK(st.max_depth <= 6);
+        CHECK_EQ_INT(s->meta.max_depth_limit, 6);
+        const as_ray_t ray = {{0.5f, 0.5f, -1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY};
+        (void)trace1(s, &ray);
+    }
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
 static void a_flat_scene_builds_and_is_hit_from_both_sides(void)
 {
     /* A 64 x 64 grid of quads in the plane z = 0.5: a zero-thickness box. */
@@ -425,6 +445,7 @@ int main(int argc, char **argv)
     RUN_TEST(build_is_byte_identical_for_1_2_and_3_threads);
     RUN_TEST(progress_callback_returning_false_cancels_the_build);
     RUN_TEST(copies_of_one_triangle_stay_shallow_and_hit_the_lowest_index);
+    RUN_TEST(the_depth_cap_argument_is_honoured);
     RUN_TEST(a_flat_scene_builds_and_is_hit_from_both_sides);
     RUN_TEST(quads_on_split_planes_are_hit_by_crossing_rays);
     RUN_TEST(validation_rejects_damaged_copies);

@@ -388,7 +388,11 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     bvh_builder b;
     as_error_t err = bvh_builder_init(&b, mesh, args, 2);
     if (err != AS_OK) return err;
-    const double factor = args->split_budget > 1.0f ? (double)args->split_budget - 1.0 : 0.0;
+    /* Extra references: (split_budget - 1) x N, at most 15 x N, so that a
+     * huge budget cannot ask for more build memory than 16 x N references
+     * (and TRI4 indices stay 31-bit, below). */
+    double factor = args->split_budget > 1.0f ? (double)args->split_budget - 1.0 : 0.0;
+    if (factor > 15.0) factor = 15.0;
     double extra = floor(factor * (double)b.ref_count);
     /* TRI4 indices are 31-bit. */
     if (extra > (double)(INT32_MAX / 2) - (double)b.ref_count) extra = (double)(INT32_MAX / 2) - (double)b.ref_count;
