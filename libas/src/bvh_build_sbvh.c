@@ -204,6 +204,14 @@ typedef struct sides {
     uint32_t nl, nr;
 } sides;
 
+static void sides_free(sides *s)
+{
+    free(s->l);
+    free(s->r);
+    s->l = s->r = NULL;
+    s->nl = s->nr = 0;
+}
+
 static int partition_object(const bvh_ref *refs, uint32_t count, const bvh_object_split *s, uint32_t nb, sides *out)
 {
     out->l = malloc(sizeof(bvh_ref) * count);
@@ -343,28 +351,20 @@ static void sbvh_recursive(sbvh_ctx *ctx, int32_t node, bvh_ref *refs, uint32_t 
     if (use_spatial) {
         ok = partition_spatial(b, refs, count, &ss, &sd);
         /* A split that leaves a side empty or overspends falls back. */
-        if (ok && (sd.nl == 0 || sd.nr == 0 || (uint64_t)sd.nl + sd.nr - count > budget)) {
-            free(sd.l);
-            free(sd.r);
-            ok = 0;
-            use_spatial = 0;
-        }
+        if (ok && (sd.nl == 0 || sd.nr == 0 || (uint64_t)sd.nl + sd.nr - count > budget)) ok = 0;
+        if (!ok) sides_free(&sd);
     }
     if (!ok && os.axis >= 0) {
-        free(sd.l);
-        free(sd.r);
         ok = partition_object(refs, count, &os, nb, &sd);
-        if (ok && (sd.nl == 0 || sd.nr == 0)) { free(sd.l); free(sd.r); ok = 0; }
+        if (ok && (sd.nl == 0 || sd.nr == 0)) ok = 0;
+        if (!ok) sides_free(&sd);
     }
     if (!ok && must_split) {
         /* All centroids coincide (copies of one triangle): halve the list. */
-        free(sd.l);
-        free(sd.r);
         ok = partition_half(refs, count, &sd);
+        if (!ok) sides_free(&sd);
     }
     if (!ok) {
-        free(sd.l);
-        free(sd.r);
         bvh_make_leaf(b, node, refs, count);
         return;
     }
