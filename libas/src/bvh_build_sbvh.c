@@ -115,6 +115,36 @@ static inline void split_ref(const as_mesh_t *mesh, const bvh_ref *r, int axis, 
     }
 }
 
+/* The same split for the bin search, which only estimates costs: float
+ * arithmetic, no outward rounding (the partition recomputes exactly). */
+static inline void split_ref_estimate(const float *const v[3], const bvh_ref *r, int axis, float pos, bvh_box *left,
+                                      bvh_box *right)
+{
+    *left = bvh_box_empty();
+    *right = bvh_box_empty();
+    for (int e = 0; e < 3; ++e) {
+        const float *v0 = v[e], *v1 = v[(e + 1) % 3];
+        const float p0 = v0[axis], p1 = v1[axis];
+        if (p0 <= pos) grow_point(left, v0);
+        if (p0 >= pos) grow_point(right, v0);
+        if ((p0 < pos && p1 > pos) || (p0 > pos && p1 < pos)) {
+            const float t = (pos - p0) / (p1 - p0);
+            float x[3];
+            for (int a = 0; a < 3; ++a) x[a] = a == axis ? pos : v0[a] + t * (v1[a] - v0[a]);
+            grow_point(left, x);
+            grow_point(right, x);
+        }
+    }
+    if (left->hi[axis] > pos) left->hi[axis] = pos;
+    if (right->lo[axis] < pos) right->lo[axis] = pos;
+    for (int a = 0; a < 3; ++a) {
+        if (left->lo[a] < r->lo[a]) left->lo[a] = r->lo[a];
+        if (left->hi[a] > r->hi[a]) left->hi[a] = r->hi[a];
+        if (right->lo[a] < r->lo[a]) right->lo[a] = r->lo[a];
+        if (right->hi[a] > r->hi[a]) right->hi[a] = r->hi[a];
+    }
+}
+
 /* ---- spatial split search */
 
 typedef struct spatial_split {
@@ -151,9 +181,14 @@ static spatial_split find_spatial_split(const bvh_builder *b, const bvh_ref *ref
             b0 = b0 < 0 ? 0 : b0 >= (int)nb ? (int)nb - 1 : b0;
             b1 = b1 < b0 ? b0 : b1 >= (int)nb ? (int)nb - 1 : b1;
             bvh_ref cur = *r;
+            const float *v[3] = {NULL, NULL, NULL};
+            if (b0 < b1) {
+                const uint32_t *ix = b->mesh->indices + 3 * (size_t)r->id;
+                for (int j = 0; j < 3; ++j) v[j] = b->mesh->positions + 3 * (size_t)ix[j];
+            }
             for (int k = b0; k < b1; ++k) {
                 bvh_box lb, rb;
-                split_ref(b->mesh, &cur, axis, bin_plane(node_box, axis, (uint32_t)k + 1, nb), &lb, &rb);
+                split_ref_estimate(v, &cur, axis, bin_plane(node_box, axis, (uint32_t)k + 1, nb), &lb, &rb);
                 if (box_valid(&lb)) bvh_box_grow(&bins[k], lb.lo, lb.hi);
                 if (!box_valid(&rb)) break;
                 memcpy(cur.lo, rb.lo, sizeof cur.lo);
