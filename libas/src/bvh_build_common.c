@@ -99,38 +99,49 @@ bvh_box bvh_refs_centroid_box(const bvh_ref *refs, uint32_t count)
 bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb, uint32_t nb)
 {
     bvh_object_split best = {-1, 0, INFINITY, 0, 0};
+    /* One pass over the references bins all three axes. */
+    float scale[3];
+    int use[3];
     for (int axis = 0; axis < 3; ++axis) {
         const float extent = cb->hi[axis] - cb->lo[axis];
-        if (!(extent > 0.0f)) continue;
+        use[axis] = extent > 0.0f;
         /* The (1 - 1e-6) keeps the largest centroid inside the last bin. */
-        const float scale = (float)nb * (1.0f - 1e-6f) / extent;
-        bvh_box bins[BVH_MAX_BINS];
-        uint32_t counts[BVH_MAX_BINS];
-        for (uint32_t i = 0; i < nb; ++i) { bins[i] = bvh_box_empty(); counts[i] = 0; }
-        for (uint32_t i = 0; i < count; ++i) {
-            const bvh_ref *r = &refs[i];
+        scale[axis] = use[axis] ? (float)nb * (1.0f - 1e-6f) / extent : 0.0f;
+    }
+    if (!use[0] && !use[1] && !use[2]) return best;
+    bvh_box bins[3][BVH_MAX_BINS];
+    uint32_t counts[3][BVH_MAX_BINS];
+    for (int axis = 0; axis < 3; ++axis)
+        for (uint32_t i = 0; i < nb; ++i) { bins[axis][i] = bvh_box_empty(); counts[axis][i] = 0; }
+    for (uint32_t i = 0; i < count; ++i) {
+        const bvh_ref *r = &refs[i];
+        for (int axis = 0; axis < 3; ++axis) {
+            if (!use[axis]) continue;
             const float c = bvh_ref_centroid(r, axis);
-            int k = (int)((c - cb->lo[axis]) * scale);
+            int k = (int)((c - cb->lo[axis]) * scale[axis]);
             if (k < 0) k = 0;
             if (k >= (int)nb) k = (int)nb - 1;
-            bvh_box_grow(&bins[k], r->lo, r->hi);
-            counts[k]++;
+            bvh_box_grow(&bins[axis][k], r->lo, r->hi);
+            counts[axis][k]++;
         }
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+        if (!use[axis]) continue;
         double right_area[BVH_MAX_BINS];
         uint32_t right_count[BVH_MAX_BINS];
         bvh_box acc = bvh_box_empty();
         uint32_t n = 0;
         for (int i = (int)nb - 1; i > 0; --i) {
-            bvh_box_grow(&acc, bins[i].lo, bins[i].hi);
-            n += counts[i];
+            bvh_box_grow(&acc, bins[axis][i].lo, bins[axis][i].hi);
+            n += counts[axis][i];
             right_area[i] = bvh_box_half_area(&acc);
             right_count[i] = n;
         }
         acc = bvh_box_empty();
         n = 0;
         for (uint32_t i = 0; i + 1 < nb; ++i) {
-            bvh_box_grow(&acc, bins[i].lo, bins[i].hi);
-            n += counts[i];
+            bvh_box_grow(&acc, bins[axis][i].lo, bins[axis][i].hi);
+            n += counts[axis][i];
             if (n == 0 || right_count[i + 1] == 0) continue;
             const double cost = bvh_box_half_area(&acc) * n + right_area[i + 1] * right_count[i + 1];
             if (cost < best.cost) {
@@ -138,7 +149,7 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
                 best.bin = (int)i;
                 best.cost = cost;
                 best.cmin = cb->lo[axis];
-                best.scale = scale;
+                best.scale = scale[axis];
             }
         }
     }
