@@ -661,6 +661,8 @@ void asf_close(asf_file_t *f)
     free(f);
 }
 
+const void *asf_bytes(const asf_file_t *f) { return f ? f->data : NULL; }
+
 const char *asf_name(const asf_file_t *f) { return f->name; }
 uint64_t asf_size(const asf_file_t *f) { return f->size; }
 const asf_header_t *asf_header(const asf_file_t *f) { return &f->header; }

@@ -52,6 +52,9 @@ asf_file_t *asf_open_memory(const void *data, size_t size, const char *name,
 void asf_close(asf_file_t *f);
 
 const char *asf_name(const asf_file_t *f);
+/* The whole file's bytes (the mapping, page-aligned, when opened from a
+ * path), for callers that hand the mapping itself to a device. */
+const void *asf_bytes(const asf_file_t *f);
 uint64_t asf_size(const asf_file_t *f);
 const asf_header_t *asf_header(const asf_file_t *f);
 uint32_t asf_section_count(const asf_file_t *f);

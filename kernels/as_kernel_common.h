@@ -27,12 +27,18 @@
 #define AS_SUB(a, b) __fsub_rn((a), (b))
 #define AS_MINF(a, b) fminf((a), (b))
 #define AS_MAXF(a, b) fmaxf((a), (b))
+#define AS_DMUL(a, b) __dmul_rn((a), (b))
+#define AS_DADD(a, b) __dadd_rn((a), (b))
+#define AS_DSUB(a, b) __dsub_rn((a), (b))
 #else
 #define AS_MUL(a, b) ((a) * (b))
 #define AS_ADD(a, b) ((a) + (b))
 #define AS_SUB(a, b) ((a) - (b))
 #define AS_MINF(a, b) fminf((a), (b))
 #define AS_MAXF(a, b) fmaxf((a), (b))
+#define AS_DMUL(a, b) ((a) * (b))
+#define AS_DADD(a, b) ((a) + (b))
+#define AS_DSUB(a, b) ((a) - (b))
 #endif
 
 

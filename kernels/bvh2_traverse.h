@@ -9,7 +9,7 @@
 
 /* Per-ray counters for the statistics launch. */
 typedef struct as_trace_counters {
-    uint32_t node_visits;   /* inner nodes fetched */
+    uint32_t node_visits;   /* traversal steps: nodes fetched, leaves included */
     uint32_t tri_tests;     /* ray/triangle tests */
 } as_trace_counters_t;
 
@@ -44,6 +44,7 @@ AS_HD void as_bvh2_load_links(const as_bvh2_node_t *n, int32_t c[2], uint32_t cn
 AS_HD int as_bvh2_leaf(const as_ray_pre_t *r, const as_tri4_t *AS_RESTRICT tris, uint32_t first,
                        uint32_t count, int any_hit, as_hit_rec_t *hit, as_trace_counters_t *ctr)
 {
+    if (ctr) ctr->node_visits++;
     for (uint32_t i = 0; i < count; ++i) {
         const as_tri4_t *tri = tris + first + i;
         const as_f4_t v0 = as_load_f4(&tri->v0), v1 = as_load_f4(&tri->v1), v2 = as_load_f4(&tri->v2);

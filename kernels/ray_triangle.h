@@ -13,14 +13,20 @@ typedef struct as_ray_pre {
     float tmin, tmax;
     int kx, ky, kz;         /* kz: the dominant axis of d (Woop et al. 2013) */
     float sx, sy, sz;       /* shear constants */
+    int precise;            /* the triangle test runs in double */
+    double dsx, dsy, dsz;   /* shear constants in double (precise only) */
 } as_ray_pre_t;
+
+/* Flags of as_ray_prepare. */
+#define AS_RAY_PRECISE 1    /* watertight test in double: exact where float cancels
+                               (huge triangles seen from close by, tiny ones from afar) */
 
 AS_HD int as_is_finite(float x) { return (as_float_as_uint(x) & 0x7f800000u) != 0x7f800000u; }
 
 /* Prepares a ray; returns 0 for a ray that can hit nothing by definition:
  * NaN or infinite origin or direction, zero direction, tmin > tmax or NaN
  * limits. Such rays report a miss without traversal. */
-AS_HD int as_ray_prepare(const float org[3], float tmin, const float dir[3], float tmax,
+AS_HD int as_ray_prepare(const float org[3], float tmin, const float dir[3], float tmax, int flags,
                          as_ray_pre_t *r)
 {
     if (!as_is_finite(org[0]) || !as_is_finite(org[1]) || !as_is_finite(org[2]) ||
@@ -51,6 +57,13 @@ AS_HD int as_ray_prepare(const float org[3], float tmin, const float dir[3], flo
     r->sx = d[kx] / d[kz];
     r->sy = d[ky] / d[kz];
     r->sz = 1.0f / d[kz];
+    r->precise = flags & AS_RAY_PRECISE;
+    r->dsx = r->dsy = r->dsz = 0.0;
+    if (r->precise) {
+        r->dsx = (double)d[kx] / (double)d[kz];
+        r->dsy = (double)d[ky] / (double)d[kz];
+        r->dsz = 1.0 / (double)d[kz];
+    }
     return 1;
 }
 
@@ -75,6 +88,37 @@ AS_HD int as_ray_box(const as_ray_pre_t *r, float lox, float hix, float loy, flo
     return tn <= tf;
 }
 
+/* The same test in double: products of floats are exact in double and the
+ * edge functions of a shared edge are still exact negatives, so it stays
+ * watertight while the cancellation that float suffers for triangles much
+ * larger or smaller than their distance disappears. */
+AS_HD int as_ray_triangle_precise(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+                                  float tmax_now, float *t_out, float *u_out, float *v_out)
+{
+    const double o[3] = {r->ox, r->oy, r->oz};
+    const int kx = r->kx, ky = r->ky, kz = r->kz;
+    const double A_x = AS_DSUB((double)a[kx], o[kx]), A_y = AS_DSUB((double)a[ky], o[ky]), A_z = AS_DSUB((double)a[kz], o[kz]);
+    const double B_x = AS_DSUB((double)b[kx], o[kx]), B_y = AS_DSUB((double)b[ky], o[ky]), B_z = AS_DSUB((double)b[kz], o[kz]);
+    const double C_x = AS_DSUB((double)c[kx], o[kx]), C_y = AS_DSUB((double)c[ky], o[ky]), C_z = AS_DSUB((double)c[kz], o[kz]);
+    const double Ax = AS_DSUB(A_x, AS_DMUL(r->dsx, A_z)), Ay = AS_DSUB(A_y, AS_DMUL(r->dsy, A_z));
+    const double Bx = AS_DSUB(B_x, AS_DMUL(r->dsx, B_z)), By = AS_DSUB(B_y, AS_DMUL(r->dsy, B_z));
+    const double Cx = AS_DSUB(C_x, AS_DMUL(r->dsx, C_z)), Cy = AS_DSUB(C_y, AS_DMUL(r->dsy, C_z));
+    const double U = AS_DSUB(AS_DMUL(Cx, By), AS_DMUL(Cy, Bx));
+    const double V = AS_DSUB(AS_DMUL(Ax, Cy), AS_DMUL(Ay, Cx));
+    const double W = AS_DSUB(AS_DMUL(Bx, Ay), AS_DMUL(By, Ax));
+    if ((U < 0.0 || V < 0.0 || W < 0.0) && (U > 0.0 || V > 0.0 || W > 0.0)) return 0;
+    const double det = AS_DADD(AS_DADD(U, V), W);
+    if (det == 0.0) return 0;
+    const double T = AS_DADD(AS_DADD(AS_DMUL(U, AS_DMUL(r->dsz, A_z)), AS_DMUL(V, AS_DMUL(r->dsz, B_z))),
+                             AS_DMUL(W, AS_DMUL(r->dsz, C_z)));
+    const double t = T / det;
+    if (!(t >= (double)r->tmin && t <= (double)tmax_now)) return 0;
+    *t_out = (float)t; /* rounding is monotonic: still within the float interval */
+    *u_out = (float)(V / det);
+    *v_out = (float)(W / det);
+    return 1;
+}
+
 /* Watertight ray/triangle intersection (Woop, Benthin & Wald 2013), no
  * culling. Returns 1 and sets *t, *u, *v when the ray hits the triangle with
  * tmin <= t <= tmax_now, where the hit point is (1-u-v) a + u b + v c.
@@ -82,6 +126,7 @@ AS_HD int as_ray_box(const as_ray_pre_t *r, float lox, float hix, float loy, flo
 AS_HD int as_ray_triangle(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
                           float tmax_now, float *t_out, float *u_out, float *v_out)
 {
+    if (r->precise) return as_ray_triangle_precise(r, a, b, c, tmax_now, t_out, u_out, v_out);
     const float o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
     const float A_x = AS_SUB(a[kx], o[kx]), A_y = AS_SUB(a[ky], o[ky]), A_z = AS_SUB(a[kz], o[kz]);

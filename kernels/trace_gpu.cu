@@ -1,13 +1,13 @@
-// CUDA back end: launches the shared BVH2 traversal (kernels/bvh2_traverse.h),
-// one thread per ray. The algorithm lives in the header; this file only moves
-// data and times launches.
+// CUDA back end: launches the shared BVH2 traversal (kernels/bvh2_traverse.h).
+// The algorithm lives in the header; this file moves data, schedules rays
+// and times launches.
 #include "bvh2_traverse.h"
 #include "trace_gpu.h"
 
 #include <cuda_runtime.h>
 
 #include <algorithm>
-#include <cstdarg>
+#include <new>
 #include <cstdio>
 #include <cstring>
 #include <vector>
@@ -22,21 +22,75 @@ struct device_ray {
 };
 static_assert(sizeof(device_ray) == sizeof(as_ray_t), "ray record is 32 bytes");
 
-__global__ void bvh2_trace_kernel(const as_bvh2_node_t *__restrict__ nodes, const as_tri4_t *__restrict__ tris,
-                                  const device_ray *__restrict__ rays, float4 *__restrict__ hits, size_t count,
-                                  int any_hit)
+struct device_counters {
+    unsigned long long steps, tests;
+    unsigned steps_max, tests_max;
+};
+
+// A traversal the kernels can launch: device pointers to its sections and a
+// call into its shared header. One struct per layout; the algorithm stays
+// in the header.
+struct bvh2_traversal {
+    const as_bvh2_node_t *nodes;
+    const as_tri4_t *tris;
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_bvh2_trace(nodes, tris, r, any_hit, h, c);
+    }
+};
+
+// One ray; STATS adds the per-ray counters (a separate instantiation, so the
+// timed kernel carries no counting code at all).
+template <class T, bool STATS>
+__device__ __forceinline__ void trace_one(const T &trav, const device_ray *__restrict__ rays,
+                                          float4 *__restrict__ hits, size_t i, int any_hit, int ray_flags,
+                                          device_counters *counters)
 {
-    const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (i >= count) return;
     const float4 a = __ldg(&rays[i].a), b = __ldg(&rays[i].b);
     const float org[3] = {a.x, a.y, a.z}, dir[3] = {b.x, b.y, b.z};
     as_ray_pre_t pre;
     as_hit_rec_t h;
-    if (as_ray_prepare(org, a.w, dir, b.w, &pre))
-        as_bvh2_trace(nodes, tris, &pre, any_hit, &h, nullptr);
+    as_trace_counters_t ctr = {0, 0};
+    if (as_ray_prepare(org, a.w, dir, b.w, ray_flags, &pre))
+        trav.trace(&pre, any_hit, &h, STATS ? &ctr : nullptr);
     else
         as_hit_rec_miss(&h);
     hits[i] = make_float4(h.t, __uint_as_float(h.prim), h.u, h.v);
+    if (STATS) {
+        atomicAdd(&counters->steps, (unsigned long long)ctr.node_visits);
+        atomicAdd(&counters->tests, (unsigned long long)ctr.tri_tests);
+        atomicMax(&counters->steps_max, ctr.node_visits);
+        atomicMax(&counters->tests_max, ctr.tri_tests);
+    }
+}
+
+template <class T, bool STATS>
+__global__ void kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+                                      size_t count, int any_hit, int ray_flags, device_counters *counters)
+{
+    const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
+    if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, ray_flags, counters);
+}
+
+// Persistent threads (Aila & Laine 2009): a grid that fills the GPU once;
+// each warp takes `batch` rays per atomic from a global counter, so warps
+// that finish early take more work instead of idling at the tail.
+template <class T, bool STATS>
+__global__ void kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+                                  size_t count, int any_hit, int ray_flags, unsigned long long *next,
+                                  unsigned batch, device_counters *counters)
+{
+    const unsigned lane = threadIdx.x & 31u;
+    for (;;) {
+        unsigned long long base = 0;
+        if (lane == 0) base = atomicAdd(next, (unsigned long long)batch);
+        base = __shfl_sync(0xffffffffu, base, 0);
+        if (base >= count) return;
+        for (unsigned k = lane; k < batch; k += 32) {
+            const size_t i = (size_t)(base + k);
+            if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, ray_flags, counters);
+        }
+    }
 }
 
 as_error_t cuda_fail(cudaError_t e, const char *what)
@@ -57,53 +111,215 @@ extern "C" int as_gpu_device_count(void)
     return n;
 }
 
-#define CUDA_TRY(call, what)                                   \
-    do {                                                       \
-        const cudaError_t _e = (call);                         \
-        if (_e != cudaSuccess) { err = cuda_fail(_e, what); goto done; } \
+#define CUDA_TRY(call, what)                                                 \
+    do {                                                                     \
+        const cudaError_t _e = (call);                                       \
+        if (_e != cudaSuccess) { err = cuda_fail(_e, what); goto done; }     \
     } while (0)
 
-extern "C" as_error_t as_trace_gpu_bvh2(const void *nodes, uint64_t node_bytes, const void *tris,
-                                        uint64_t tri_bytes, const as_ray_t *rays, size_t count,
-                                        as_hit_t *hits, int any_hit, unsigned timed_runs,
-                                        as_trace_timing_t *timing)
+extern "C" void as_parallel_for(unsigned threads, size_t count, void (*fn)(void *, size_t), void *user);
+extern "C" double as_now_ms(void);
+
+extern "C" uint64_t as_gpu_free_memory(void)
+{
+    size_t free_bytes = 0, total = 0;
+    if (cudaMemGetInfo(&free_bytes, &total) != cudaSuccess) {
+        cudaGetLastError();
+        return 0;
+    }
+    return free_bytes;
+}
+
+namespace {
+
+// The pinned pipeline: each chunk of the mapping is copied into one of a
+// ring of pinned buffers by several threads, then uploaded asynchronously
+// while the next chunk is being copied.
+constexpr size_t kRingBuffers = 4;
+constexpr size_t kChunk = 32u << 20;
+constexpr unsigned kCopyThreads = 8;
+
+struct chunk_copy {
+    unsigned char *dst;
+    const unsigned char *src;
+    size_t bytes;
+};
+
+void copy_piece(void *user, size_t piece)
+{
+    const chunk_copy *c = static_cast<const chunk_copy *>(user);
+    const size_t per = (c->bytes + kCopyThreads - 1) / kCopyThreads;
+    const size_t begin = piece * per;
+    if (begin >= c->bytes) return;
+    const size_t n = std::min(per, c->bytes - begin);
+    memcpy(c->dst + begin, c->src + begin, n);
+}
+
+as_error_t upload_pinned_pipeline(void *const *device, const void *const *host, const uint64_t *bytes, int count)
 {
     as_error_t err = AS_OK;
-    void *d_nodes = nullptr, *d_tris = nullptr, *d_rays = nullptr, *d_hits = nullptr;
-    cudaEvent_t ev0 = nullptr, ev1 = nullptr, up0 = nullptr, up1 = nullptr;
+    void *ring[kRingBuffers] = {};
+    cudaEvent_t done_ev[kRingBuffers] = {};
+    cudaStream_t stream = nullptr;
+    size_t k = 0;
+    CUDA_TRY(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking), "cudaStreamCreate");
+    for (size_t b = 0; b < kRingBuffers; ++b) {
+        CUDA_TRY(cudaHostAlloc(&ring[b], kChunk, cudaHostAllocDefault), "cudaHostAlloc");
+        CUDA_TRY(cudaEventCreateWithFlags(&done_ev[b], cudaEventDisableTiming), "cudaEventCreate");
+    }
+    for (int sct = 0; sct < count; ++sct) {
+        for (uint64_t off = 0; off < bytes[sct]; off += kChunk, ++k) {
+            const size_t b = k % kRingBuffers;
+            const size_t n = (size_t)std::min<uint64_t>(kChunk, bytes[sct] - off);
+            // The buffer is free again once its last upload finished.
+            if (k >= kRingBuffers) CUDA_TRY(cudaEventSynchronize(done_ev[b]), "pipeline wait");
+            chunk_copy c = {static_cast<unsigned char *>(ring[b]), static_cast<const unsigned char *>(host[sct]) + off, n};
+            as_parallel_for(kCopyThreads, kCopyThreads, copy_piece, &c);
+            CUDA_TRY(cudaMemcpyAsync(static_cast<unsigned char *>(device[sct]) + off, ring[b], n,
+                                     cudaMemcpyHostToDevice, stream), "pipelined upload");
+            CUDA_TRY(cudaEventRecord(done_ev[b], stream), "cudaEventRecord");
+        }
+    }
+    CUDA_TRY(cudaStreamSynchronize(stream), "pipelined upload");
+done:
+    for (size_t b = 0; b < kRingBuffers; ++b) {
+        if (ring[b]) cudaFreeHost(ring[b]);
+        if (done_ev[b]) cudaEventDestroy(done_ev[b]);
+    }
+    if (stream) cudaStreamDestroy(stream);
+    return err;
+}
+
+} // namespace
+
+extern "C" void as_gpu_release(as_gpu_resident_t *g)
+{
+    if (!g) return;
+    if (g->registered) {
+        cudaHostUnregister(const_cast<void *>(g->registered));
+    }
+    if (!g->info.zero_copy)
+        for (int i = 0; i < g->section_count; ++i) cudaFree(g->device[i]);
+    delete g;
+}
+
+extern "C" as_error_t as_gpu_upload(const void *const *sections, const uint64_t *bytes, int count, int zero_copy,
+                                    int method, const void *map_base, uint64_t map_size, as_gpu_resident_t **out)
+{
+    as_error_t err = AS_OK;
+    as_gpu_resident_t *g = new (std::nothrow) as_gpu_resident_t();
+    if (!g) return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the GPU structure record");
+    g->section_count = count;
+    uint64_t total = 0;
+    for (int i = 0; i < count; ++i) {
+        g->bytes[i] = bytes[i];
+        total += bytes[i];
+    }
+    const double t0 = as_now_ms();
+    if (zero_copy || method == AS_UPLOAD_REGISTERED) {
+        // Registering needs page-aligned ranges: the whole mapping is.
+        if (!map_base) {
+            delete g;
+            return as_set_error(AS_ERROR_UNSUPPORTED, "in-place GPU access needs a structure loaded from a file");
+        }
+        CUDA_TRY(cudaHostRegister(const_cast<void *>(map_base), map_size, cudaHostRegisterMapped | cudaHostRegisterReadOnly),
+                 "cudaHostRegister of the mapped file");
+        g->registered = map_base;
+    }
+    if (zero_copy) {
+        for (int i = 0; i < count; ++i)
+            CUDA_TRY(cudaHostGetDevicePointer(&g->device[i], const_cast<void *>(sections[i]), 0),
+                     "cudaHostGetDevicePointer");
+        g->info.zero_copy = true;
+        g->info.method = "zero-copy";
+    } else {
+        for (int i = 0; i < count; ++i)
+            CUDA_TRY(cudaMalloc(&g->device[i], bytes[i] ? bytes[i] : 64), "cudaMalloc of a section");
+        if (method == AS_UPLOAD_PINNED_PIPELINE) {
+            err = upload_pinned_pipeline(g->device, sections, bytes, count);
+            if (err != AS_OK) goto done;
+            g->info.method = "pinned pipeline";
+        } else {
+            for (int i = 0; i < count; ++i)
+                CUDA_TRY(cudaMemcpy(g->device[i], sections[i], bytes[i], cudaMemcpyHostToDevice), "section upload");
+            g->info.method = method == AS_UPLOAD_REGISTERED ? "registered" : "pageable";
+        }
+        if (g->registered) {
+            cudaHostUnregister(const_cast<void *>(g->registered));
+            g->registered = nullptr;
+        }
+    }
+    g->info.bytes = total;
+    g->info.upload_ms = as_now_ms() - t0;
+    g->info.gb_per_s = g->info.upload_ms > 0 ? (double)total / (g->info.upload_ms * 1e6) : 0.0;
+done:
+    if (err != AS_OK) {
+        as_gpu_release(g);
+        return err;
+    }
+    *out = g;
+    return AS_OK;
+}
+
+namespace {
+
+template <class T>
+as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+                            as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
+{
+    as_error_t err = AS_OK;
+    void *d_rays = nullptr, *d_hits = nullptr;
+    unsigned long long *d_next = nullptr;
+    device_counters *d_counters = nullptr;
+    cudaEvent_t ev0 = nullptr, ev1 = nullptr;
     std::vector<float> times;
     const int block = 128;
-    const unsigned grid = (unsigned)((count + block - 1) / block);
+    const unsigned grid_all = (unsigned)((count + block - 1) / block);
+    unsigned grid_persistent = 0;
+    int per_sm = 0;
+    const unsigned batch = launch->batch ? launch->batch : 32;
     cudaDeviceProp prop;
+    device_counters counters = {0, 0, 0, 0};
+    const device_ray *r = nullptr;
+    float4 *h = nullptr;
     CUDA_TRY(cudaGetDeviceProperties(&prop, 0), "cudaGetDeviceProperties");
+    CUDA_TRY(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kernel_persistent<T, false>, block, 0),
+             "occupancy query");
+    grid_persistent = (unsigned)(prop.multiProcessorCount * (per_sm > 0 ? per_sm : 1));
     CUDA_TRY(cudaEventCreate(&ev0), "cudaEventCreate");
     CUDA_TRY(cudaEventCreate(&ev1), "cudaEventCreate");
-    CUDA_TRY(cudaEventCreate(&up0), "cudaEventCreate");
-    CUDA_TRY(cudaEventCreate(&up1), "cudaEventCreate");
-    CUDA_TRY(cudaMalloc(&d_nodes, node_bytes ? node_bytes : 64), "cudaMalloc nodes");
-    CUDA_TRY(cudaMalloc(&d_tris, tri_bytes ? tri_bytes : 48), "cudaMalloc triangles");
     CUDA_TRY(cudaMalloc(&d_rays, count * sizeof(as_ray_t) + 32), "cudaMalloc rays");
     CUDA_TRY(cudaMalloc(&d_hits, count * sizeof(as_hit_t) + 16), "cudaMalloc hits");
-    CUDA_TRY(cudaEventRecord(up0), "cudaEventRecord");
-    CUDA_TRY(cudaMemcpy(d_nodes, nodes, node_bytes, cudaMemcpyHostToDevice), "upload of nodes");
-    CUDA_TRY(cudaMemcpy(d_tris, tris, tri_bytes, cudaMemcpyHostToDevice), "upload of triangles");
-    CUDA_TRY(cudaEventRecord(up1), "cudaEventRecord");
+    CUDA_TRY(cudaMalloc(&d_next, sizeof(unsigned long long)), "cudaMalloc counter");
+    CUDA_TRY(cudaMalloc(&d_counters, sizeof(device_counters)), "cudaMalloc counters");
     CUDA_TRY(cudaMemcpy(d_rays, rays, count * sizeof(as_ray_t), cudaMemcpyHostToDevice), "upload of rays");
+    r = (const device_ray *)d_rays;
+    h = (float4 *)d_hits;
     if (count == 0) goto copy_back;
-    // Warm-up launch, then the timed ones.
-    bvh2_trace_kernel<<<grid, block>>>((const as_bvh2_node_t *)d_nodes, (const as_tri4_t *)d_tris,
-                                       (const device_ray *)d_rays, (float4 *)d_hits, count, any_hit);
-    CUDA_TRY(cudaGetLastError(), "kernel launch");
-    CUDA_TRY(cudaDeviceSynchronize(), "warm-up launch");
-    for (unsigned r = 0; r < timed_runs; ++r) {
+    // One warm-up launch, then the timed ones; the counter reset is outside
+    // the timed interval.
+    for (unsigned run = 0; run <= launch->timed_runs; ++run) {
+        CUDA_TRY(cudaMemset(d_next, 0, sizeof(unsigned long long)), "cudaMemset");
         CUDA_TRY(cudaEventRecord(ev0), "cudaEventRecord");
-        bvh2_trace_kernel<<<grid, block>>>((const as_bvh2_node_t *)d_nodes, (const as_tri4_t *)d_tris,
-                                           (const device_ray *)d_rays, (float4 *)d_hits, count, any_hit);
+        if (launch->persistent)
+            kernel_persistent<T, false><<<grid_persistent, block>>>(trav, r, h, count, launch->any_hit,
+                                                                     launch->ray_flags, d_next, batch, nullptr);
+        else
+            kernel_thread_per_ray<T, false><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, launch->ray_flags,
+                                                                  nullptr);
+        CUDA_TRY(cudaGetLastError(), "kernel launch");
         CUDA_TRY(cudaEventRecord(ev1), "cudaEventRecord");
-        CUDA_TRY(cudaEventSynchronize(ev1), "timed launch");
+        CUDA_TRY(cudaEventSynchronize(ev1), "traversal kernel");
         float ms = 0;
         CUDA_TRY(cudaEventElapsedTime(&ms, ev0, ev1), "cudaEventElapsedTime");
-        times.push_back(ms);
+        if (run > 0) times.push_back(ms);
+    }
+    if (launch->collect_stats) {
+        CUDA_TRY(cudaMemset(d_counters, 0, sizeof(device_counters)), "cudaMemset");
+        kernel_thread_per_ray<T, true><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, launch->ray_flags,
+                                                            d_counters);
+        CUDA_TRY(cudaGetLastError(), "statistics kernel launch");
+        CUDA_TRY(cudaMemcpy(&counters, d_counters, sizeof counters, cudaMemcpyDeviceToHost), "statistics download");
     }
 copy_back:
     CUDA_TRY(cudaMemcpy(hits, d_hits, count * sizeof(as_hit_t), cudaMemcpyDeviceToHost), "download of hits");
@@ -112,22 +328,43 @@ copy_back:
         if (!times.empty()) {
             std::sort(times.begin(), times.end());
             timing->trace_ms = times[times.size() / 2];
+            timing->trace_ms_min = times.front();
+            timing->trace_ms_max = times.back();
+            timing->timed_runs = (uint32_t)times.size();
         }
-        float up = 0;
-        cudaEventElapsedTime(&up, up0, up1);
-        timing->upload_ms = up;
-        timing->upload_bytes = node_bytes + tri_bytes;
+        if (launch->collect_stats && count) {
+            timing->have_stats = true;
+            timing->steps_avg = (double)counters.steps / (double)count;
+            timing->tests_avg = (double)counters.tests / (double)count;
+            timing->steps_max = counters.steps_max;
+            timing->tests_max = counters.tests_max;
+        }
+        timing->upload_ms = g->info.upload_ms;
+        timing->upload_bytes = g->info.bytes;
         snprintf(timing->device_name, sizeof timing->device_name, "%.80s (sm_%d%d, %d SMs)", prop.name, prop.major,
                  prop.minor, prop.multiProcessorCount);
     }
 done:
-    cudaFree(d_nodes);
-    cudaFree(d_tris);
     cudaFree(d_rays);
     cudaFree(d_hits);
+    cudaFree(d_next);
+    cudaFree(d_counters);
     if (ev0) cudaEventDestroy(ev0);
     if (ev1) cudaEventDestroy(ev1);
-    if (up0) cudaEventDestroy(up0);
-    if (up1) cudaEventDestroy(up1);
     return err;
+}
+
+} // namespace
+
+extern "C" as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+                                   as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
+{
+    switch (layout) {
+    case AS_LAYOUT_BVH2_CHILD_BOUNDS: {
+        const bvh2_traversal t = {(const as_bvh2_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    default:
+        return as_set_error(AS_ERROR_UNSUPPORTED, "no CUDA kernel for layout 0x%04x in this build", layout);
+    }
 }

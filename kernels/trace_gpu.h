@@ -11,13 +11,43 @@ extern "C" {
 /* Number of usable CUDA devices (0 when the driver or device is missing). */
 int as_gpu_device_count(void);
 
-/* Uploads the BVH2 nodes, TRI4 triangles and rays, runs one warm-up launch
- * and `timed_runs` timed launches of the BVH2 kernel, and copies the hits
- * back. timing->trace_ms is the median of the timed launches (CUDA events). */
-as_error_t as_trace_gpu_bvh2(const void *nodes, uint64_t node_bytes, const void *tris,
-                             uint64_t tri_bytes, const as_ray_t *rays, size_t count,
-                             as_hit_t *hits, int any_hit, unsigned timed_runs,
-                             as_trace_timing_t *timing);
+/* How to launch: filled from as_trace_args_t. */
+typedef struct as_gpu_launch {
+    int any_hit;
+    unsigned timed_runs;         /* >= 1 */
+    int persistent;              /* persistent threads, else one thread per ray */
+    unsigned batch;              /* persistent: rays per atomic */
+    int collect_stats;           /* run the counting kernel too (not timed) */
+    int ray_flags;               /* as_ray_prepare flags (AS_RAY_PRECISE) */
+} as_gpu_launch_t;
+
+/* A structure's sections on the device (or mapped for it in place). */
+#define AS_GPU_MAX_SECTIONS 6
+typedef struct as_gpu_resident {
+    int section_count;
+    void *device[AS_GPU_MAX_SECTIONS];   /* device pointers, in the layout's section order */
+    uint64_t bytes[AS_GPU_MAX_SECTIONS];
+    const void *registered;              /* the registered host range (zero-copy, registered) */
+    as_upload_info_t info;
+} as_gpu_resident_t;
+
+/* Makes sections resident: copies them to device memory by `method`
+ * (pageable, pinned pipeline, registered), or with zero_copy registers the
+ * host range [map_base, map_base + map_size) that holds them and hands the
+ * kernels device pointers into it. */
+as_error_t as_gpu_upload(const void *const *sections, const uint64_t *bytes, int count, int zero_copy,
+                         int method, const void *map_base, uint64_t map_size, as_gpu_resident_t **out);
+void as_gpu_release(as_gpu_resident_t *g);
+/* Free device memory in bytes (0 when unknown). */
+uint64_t as_gpu_free_memory(void);
+
+/* Uploads the rays, runs one warm-up launch and `timed_runs` timed launches
+ * of the layout's kernel over its resident sections (in the layout's section
+ * order), and copies the hits back. timing->trace_ms is the median of the
+ * timed launches (CUDA events around the kernel alone).
+ * AS_ERROR_UNSUPPORTED for a layout without a kernel. */
+as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+                        as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing);
 
 #ifdef __cplusplus
 }

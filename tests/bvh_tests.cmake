@@ -12,3 +12,4 @@ foreach(scene staircase2.ply.zst bunny.drc)
 endforeach()
 # GPU hits equal CPU hits (skips without a GPU).
 as_add_test(test_gpu_agreement SOURCES test_gpu_agreement.c LABELS gpu)
+as_add_test(test_verify SOURCES test_verify.c LABELS bvh)

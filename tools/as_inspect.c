@@ -33,18 +33,6 @@ static const char *checksum_word(int status)
     return status > 0 ? "verified" : status < 0 ? "mismatch" : "not checked";
 }
 
-/* A JSON string: quotes, backslashes and control characters escaped. */
-static void print_json_string(const char *s)
-{
-    putchar('"');
-    for (const unsigned char *p = (const unsigned char *)s; *p; ++p) {
-        if (*p == '"' || *p == '\\') printf("\\%c", *p);
-        else if (*p < 0x20) printf("\\u%04x", *p);
-        else putchar(*p);
-    }
-    putchar('"');
-}
-
 static void print_histogram_json(const char *name, const uint64_t *h)
 {
     int last = -1;
@@ -115,7 +103,7 @@ int main(int argc, char **argv)
     const double bpt = st.triangle_count ? (double)st.structure_bytes / st.triangle_count : 0.0;
     if (json) {
         printf("{\n  \"file\": ");
-        print_json_string(path);
+        tool_print_json_string(path);
         printf(",\n  \"sections\": [\n");
         for (uint32_t i = 0; i < nsec; ++i) {
             as_section_info_t si;
@@ -133,7 +121,7 @@ int main(int argc, char **argv)
         printf("  \"structure\": \"%s\",\n  \"layout\": \"%s\",\n  \"layout_version\": %u,\n", kind_name(st.structure),
                layout_name(st.layout), st.layout_version);
         printf("  \"writer\": ");
-        print_json_string(st.writer);
+        tool_print_json_string(st.writer);
         printf(",\n  \"writer_version\": %u,\n", st.writer_version);
         printf("  \"build\": {\"builder\": \"%s\", \"max_leaf_size\": %u, \"bins\": %u, \"cost_traversal\": %g, "
                "\"cost_intersection\": %g},\n",

@@ -77,3 +77,15 @@ bool tool_progress(void *user, double fraction)
     }
     return true;
 }
+
+/* A JSON string: quotes, backslashes and control characters escaped. */
+void tool_print_json_string(const char *s)
+{
+    putchar('"');
+    for (const unsigned char *p = (const unsigned char *)s; *p; ++p) {
+        if (*p == '"' || *p == '\\') printf("\\%c", *p);
+        else if (*p < 0x20) printf("\\u%04x", *p);
+        else putchar(*p);
+    }
+    putchar('"');
+}

@@ -33,6 +33,10 @@ bool tool_parse_u32(const char *s, unsigned *out);
 bool tool_parse_float(const char *s, float *out);
 bool tool_parse_vec3(const char *s, float out[3]);
 
+/* Prints s as a JSON string: quotes, backslashes and control characters
+ * escaped. */
+void tool_print_json_string(const char *s);
+
 /* Progress on stderr, only when stderr is a terminal. */
 bool tool_progress(void *user, double fraction);
 

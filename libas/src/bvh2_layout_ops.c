@@ -63,18 +63,21 @@ static void bvh2_stats(const as_structure_t *s, as_structure_stats_t *st)
     st->sah_cost = bvh2_walk(s, st);
 }
 
-static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count, int any_hit)
+static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count, int any_hit,
+                           int ray_flags, as_cpu_stats_t *stats)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
     for (size_t i = 0; i < count; ++i) {
         const as_ray_t *ray = &rays[i];
         as_hit_rec_t h;
         as_ray_pre_t pre;
+        as_trace_counters_t ctr = {0, 0};
         /* A file loaded without validation may have no root at all. */
-        if (ns->count > 0 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, &pre))
-            as_bvh2_trace(ns->data, ts->data, &pre, any_hit, &h, NULL);
+        if (ns->count > 0 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, ray_flags, &pre))
+            as_bvh2_trace(ns->data, ts->data, &pre, any_hit, &h, stats ? &ctr : NULL);
         else
             as_hit_rec_miss(&h);
+        if (stats) as_cpu_stats_add(stats, ctr.node_visits, ctr.tri_tests);
         hits[i].t = h.t;
         hits[i].prim = h.prim;
         hits[i].u = h.u;
@@ -103,12 +106,11 @@ static as_error_t bvh2_convert(const as_structure_t *src, uint32_t target, as_st
 
 #ifdef AS_HAVE_CUDA
 static as_error_t bvh2_trace_gpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
-                                 int any_hit, unsigned timed_runs, as_trace_timing_t *timing)
+                                 const as_gpu_launch_t *launch, as_trace_timing_t *timing)
 {
-    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
-    if (ns->count == 0) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "BVH2 section has no root node");
-    return as_trace_gpu_bvh2(ns->data, ns->bytes, ts->data, ts->bytes, rays, count, hits, any_hit, timed_runs,
-                             timing);
+    if (as_structure_find(s, ASF_TAG_BVH2)->count == 0)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "BVH2 section has no root node");
+    return as_trace_gpu(AS_LAYOUT_BVH2_CHILD_BOUNDS, s->gpu, rays, count, hits, launch, timing);
 }
 #endif
 

@@ -26,51 +26,16 @@ static uint8_t *png_chunk(uint8_t *out, const char type[4], const uint8_t *data,
     return out + 12 + len;
 }
 
-as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits,
-                              uint32_t width, uint32_t height, const char *path)
+/* Encodes rows of 8-bit RGB (each row led by its filter byte, 0) as a PNG
+ * and writes it atomically. */
+static as_error_t write_png_rows(const char *path, uint32_t width, uint32_t height, const uint8_t *raw)
 {
-    if (!s || !rays || !hits || !path || !width || !height)
-        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_image_write_png: bad argument");
-    const as_section_t *ts = as_structure_find(s, ASF_TAG_TRI4);
-    if (!ts) return as_set_error(AS_ERROR_UNSUPPORTED, "the structure has no triangles to shade");
-    const as_tri4_t *tris = ts->data;
-    /* Hits name source triangles; shading needs their vertices. */
-    const uint32_t nsrc = s->meta.triangle_count;
-    uint32_t *where = as_malloc(sizeof(uint32_t) * (size_t)(nsrc ? nsrc : 1), "shading index");
     const size_t row = 1 + 3 * (size_t)width;
-    uint8_t *raw = as_malloc(row * height, "image rows");
     const uLong bound = compressBound((uLong)(row * height));
     uint8_t *z = as_malloc(bound, "compressed image");
     uint8_t *file = as_malloc(bound + 128, "PNG file");
     as_error_t err = AS_OK;
-    if (!where || !raw || !z || !file) { err = as_get_error(); goto done; }
-    for (uint32_t i = 0; i < nsrc; ++i) where[i] = UINT32_MAX;
-    for (uint64_t i = 0; i < ts->count; ++i) {
-        const uint32_t prim = as_float_as_uint(tris[i].v0.w);
-        if (prim < nsrc) where[prim] = (uint32_t)i;
-    }
-    for (uint32_t y = 0; y < height; ++y) {
-        uint8_t *p = raw + row * y;
-        *p++ = 0; /* filter: none */
-        for (uint32_t x = 0; x < width; ++x, p += 3) {
-            const size_t i = (size_t)y * width + x;
-            const as_hit_t *h = &hits[i];
-            if (h->prim == AS_NO_HIT || h->prim >= nsrc || where[h->prim] == UINT32_MAX) {
-                p[0] = 20; p[1] = 24; p[2] = 48;
-                continue;
-            }
-            const as_tri4_t *t = &tris[where[h->prim]];
-            const float e1[3] = {t->v1.x - t->v0.x, t->v1.y - t->v0.y, t->v1.z - t->v0.z};
-            const float e2[3] = {t->v2.x - t->v0.x, t->v2.y - t->v0.y, t->v2.z - t->v0.z};
-            float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
-            const float nl = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-            const float *d = rays[i].dir;
-            const float dl = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            float c = nl > 0 && dl > 0 ? fabsf(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / (nl * dl) : 0.0f;
-            const uint8_t g = (uint8_t)(30.0f + 225.0f * c);
-            p[0] = g; p[1] = g; p[2] = g;
-        }
-    }
+    if (!z || !file) { err = as_get_error(); goto done; }
     uLongf zlen = bound;
     if (compress2(z, &zlen, raw, (uLong)(row * height), 6) != Z_OK) {
         err = as_set_error(AS_ERROR_UNKNOWN, "%s: zlib could not compress the image", path);
@@ -91,9 +56,69 @@ as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays, con
     const as_file_part_t part = {file, (size_t)(o - file)};
     err = as_atomic_write(path, &part, 1);
 done:
-    free(where);
-    free(raw);
     free(z);
     free(file);
+    return err;
+}
+
+as_error_t as_image_write_png_grey(const char *path, uint32_t width, uint32_t height, const float *values)
+{
+    if (!path || !values || !width || !height)
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_image_write_png_grey: bad argument");
+    const size_t row = 1 + 3 * (size_t)width;
+    uint8_t *raw = as_malloc(row * height, "image rows");
+    if (!raw) return as_get_error();
+    for (uint32_t y = 0; y < height; ++y) {
+        uint8_t *p = raw + row * y;
+        *p++ = 0;
+        for (uint32_t x = 0; x < width; ++x, p += 3) {
+            const float v = values[(size_t)y * width + x];
+            if (v < 0.0f) { p[0] = 20; p[1] = 24; p[2] = 48; continue; }
+            const uint8_t g = (uint8_t)(255.0f * (v > 1.0f ? 1.0f : v) + 0.5f);
+            p[0] = p[1] = p[2] = g;
+        }
+    }
+    const as_error_t err = write_png_rows(path, width, height, raw);
+    free(raw);
+    return err;
+}
+
+as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits,
+                              uint32_t width, uint32_t height, const char *path)
+{
+    if (!s || !rays || !hits || !path || !width || !height)
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_image_write_png: bad argument");
+    const as_tri4_t **where = as_structure_triangles_by_prim(s);
+    const uint32_t nsrc = s->meta.triangle_count;
+    const size_t row = 1 + 3 * (size_t)width;
+    uint8_t *raw = as_malloc(row * height, "image rows");
+    as_error_t err = AS_OK;
+    if (!where || !raw) { err = as_get_error(); goto done; }
+    for (uint32_t y = 0; y < height; ++y) {
+        uint8_t *p = raw + row * y;
+        *p++ = 0; /* filter: none */
+        for (uint32_t x = 0; x < width; ++x, p += 3) {
+            const size_t i = (size_t)y * width + x;
+            const as_hit_t *h = &hits[i];
+            if (h->prim == AS_NO_HIT || h->prim >= nsrc || !where[h->prim]) {
+                p[0] = 20; p[1] = 24; p[2] = 48;
+                continue;
+            }
+            const as_tri4_t *t = where[h->prim];
+            const float e1[3] = {t->v1.x - t->v0.x, t->v1.y - t->v0.y, t->v1.z - t->v0.z};
+            const float e2[3] = {t->v2.x - t->v0.x, t->v2.y - t->v0.y, t->v2.z - t->v0.z};
+            float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+            const float nl = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            const float *d = rays[i].dir;
+            const float dl = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            float c = nl > 0 && dl > 0 ? fabsf(n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) / (nl * dl) : 0.0f;
+            const uint8_t g = (uint8_t)(30.0f + 225.0f * c);
+            p[0] = g; p[1] = g; p[2] = g;
+        }
+    }
+    err = write_png_rows(path, width, height, raw);
+done:
+    free((void *)where);
+    free(raw);
     return err;
 }

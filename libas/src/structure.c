@@ -2,6 +2,8 @@
  * loading from .asf files, statistics and section listing. */
 #include "structure.h"
 #include "mesh.h"
+#include "trace_gpu.h"
+#include "bvh2_layout.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -169,6 +171,9 @@ as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t 
 void as_structure_release(as_structure_t *s)
 {
     if (!s) return;
+#ifdef AS_HAVE_CUDA
+    as_gpu_release(s->gpu);
+#endif
     for (uint32_t i = 0; i < s->section_count; ++i) free(s->sections[i].owned);
     asf_close(s->file);
     free(s);
@@ -372,6 +377,22 @@ as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t 
     as_structure_ops(s)->stats(s, st);
     st->average_leaf_size = st->leaf_count ? (double)st->reference_count / (double)st->leaf_count : 0.0;
     return AS_OK;
+}
+
+const struct as_tri4 **as_structure_triangles_by_prim(const as_structure_t *s)
+{
+    const uint32_t n = s->meta.triangle_count;
+    const as_tri4_t **map = as_calloc(n ? n : 1, sizeof *map, "triangle index");
+    if (!map) return NULL;
+    const as_section_t *sec = as_structure_find(s, ASF_TAG('T', 'R', 'I', 'S'));
+    if (!sec) sec = as_structure_find(s, ASF_TAG_TRI4);
+    if (!sec) return map;
+    const as_tri4_t *t = sec->data;
+    for (uint64_t i = 0; i < sec->count; ++i) {
+        const uint32_t prim = as_float_as_uint(t[i].v0.w);
+        if (prim < n && !map[prim]) map[prim] = &t[i];
+    }
+    return map;
 }
 
 static const char *section_purpose(const as_structure_t *s, uint32_t tag)

@@ -24,6 +24,7 @@ struct as_structure {
     as_section_t sections[AS_MAX_SECTIONS];
     uint32_t section_count;
     asf_file_t *file;             /* when loaded */
+    struct as_gpu_resident *gpu;  /* the sections on the GPU, after the first GPU use */
     double build_ms;              /* when built; files do not store it */
 };
 
@@ -34,6 +35,12 @@ const as_section_t *as_structure_find(const as_structure_t *s, uint32_t tag);
 void as_structure_add_section(as_structure_t *s, uint32_t tag, void *data, uint64_t count,
                               uint32_t stride);
 
+/* For each source triangle index, its vertices in the structure (TRIS in
+ * source order, or TRI4 in leaf order inverted); NULL where the structure
+ * has none (zero-area triangles). malloc'd; the caller frees it. */
+struct as_tri4;
+const struct as_tri4 **as_structure_triangles_by_prim(const as_structure_t *s);
+
 /* 64-byte aligned allocation for section data; free with free(). */
 void *as_aligned_alloc(size_t bytes, const char *what);
 
@@ -41,6 +48,23 @@ void *as_aligned_alloc(size_t bytes, const char *what);
  * describe and trace it. One table per layout, in the layout's own file
  * (bvh2_layout_ops.c, ...); adding a structure adds a table to as_layouts. */
 #define AS_LAYOUT_MAX_SECTIONS 6
+
+struct as_gpu_launch; /* kernels/trace_gpu.h */
+
+/* Traversal counters summed over rays, with their maxima. */
+typedef struct as_cpu_stats {
+    uint64_t steps, tests;
+    uint32_t steps_max, tests_max;
+} as_cpu_stats_t;
+
+/* Adds one ray's counters. */
+static inline void as_cpu_stats_add(as_cpu_stats_t *s, uint32_t steps, uint32_t tests)
+{
+    s->steps += steps;
+    s->tests += tests;
+    if (steps > s->steps_max) s->steps_max = steps;
+    if (tests > s->tests_max) s->tests_max = tests;
+}
 
 typedef struct as_layout_section {
     uint32_t tag;
@@ -60,15 +84,17 @@ typedef struct as_layout_ops {
     as_error_t (*validate)(const as_structure_t *s, const char *name);
     /* Counts, depths, histograms, SAH cost; `s` has been validated. */
     void (*stats)(const as_structure_t *s, as_structure_stats_t *st);
-    /* Traces rays [0, count) on the calling thread. */
+    /* Traces rays [0, count) on the calling thread; ray_flags go to
+     * as_ray_prepare (AS_RAY_PRECISE). With `stats`, also counts each ray's
+     * steps and triangle tests into it. */
     void (*trace_cpu)(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count,
-                      int any_hit);
+                      int any_hit, int ray_flags, struct as_cpu_stats *stats);
     /* Fills `dst` (zeroed) with the same structure in `target` layout, or
      * returns AS_ERROR_UNSUPPORTED; NULL when the layout converts to none. */
     as_error_t (*convert)(const as_structure_t *src, uint32_t target, as_structure_t *dst);
     /* The CUDA back end, or NULL where this build has none. */
     as_error_t (*trace_gpu)(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
-                            int any_hit, unsigned timed_runs, as_trace_timing_t *timing);
+                            const struct as_gpu_launch *launch, as_trace_timing_t *timing);
 } as_layout_ops_t;
 
 /* The table for a kind and layout, or NULL when this build has none. */

@@ -52,7 +52,7 @@ expect_rc "as-trace of the original" 0
 run ztrace "$TOOLS/as-trace" --device cpu -W 96 -H 64 --hits-out "$WORK/z.hits" "$WORK/z.asf"
 expect_rc "as-trace of the compressed file" 0
 expect_same_file "compressed and original files give identical hit files" "$WORK/orig.hits" "$WORK/z.hits"
-expect_grep "some camera rays hit the bunny" "$WORK/trace.out" "^rays: +6144 \\(closest hit\\), [1-9][0-9]* hit$"
+expect_grep "some camera rays hit the bunny" "$WORK/trace.out" "^primary +6144 rays \\(closest hit\\), [1-9][0-9]* hit: "
 
 # as-convert refuses a damaged input and leaves no output.
 head -c 1000 "$ORIG" >"$WORK/cut.asf"

@@ -28,9 +28,9 @@ with open(sys.argv[1], "wb") as f:
 PY
 run trace "$TOOLS/as-trace" --device cpu --rays "$WORK/probe.rays" --hits-out "$WORK/probe.hits" "$ASF"
 expect_rc "as-trace --rays --hits-out" 0
-expect_grep "summary: 5 rays, 3 hit" "$WORK/trace.out" "^rays: +5 \\(closest hit\\), 3 hit$"
+expect_grep "summary: 5 rays, 3 hit" "$WORK/trace.out" "^file +5 rays \\(closest hit\\), 3 hit: "
 expect_grep "summary: cpu device" "$WORK/trace.out" "^device: +cpu "
-expect_grep "summary: Mrays/s" "$WORK/trace.out" "^Mrays/s: +[0-9]+\\.[0-9]+$"
+expect_grep "summary: Mrays/s" "$WORK/trace.out" "^Mrays/s: +[0-9]+\\.[0-9]+ \\(file\\)$"
 expect_grep "summary: hit file written" "$WORK/trace.out" "^hits: +$WORK/probe.hits$"
 
 H=$WORK/probe.hits
@@ -57,7 +57,7 @@ expect_eq "ray 4 (direction twice as long) hits the same triangle at half the t"
 run image "$TOOLS/as-trace" --device cpu -W 80 -H 60 --image "$WORK/bunny.png" "$ASF"
 expect_rc "as-trace --image" 0
 expect_grep "summary: camera" "$WORK/image.out" "^camera: +eye .* fov 45, 80x60$"
-expect_grep "summary: 4800 rays" "$WORK/image.out" "^rays: +4800 \\(closest hit\\), [1-9][0-9]* hit$"
+expect_grep "summary: 4800 rays" "$WORK/image.out" "^primary +4800 rays \\(closest hit\\), [1-9][0-9]* hit: "
 expect_eq "PNG signature and IHDR 80 x 60, 8-bit RGB" "True 80 60 8 2" \
     "$(python3 -c 'import struct, sys; b = open(sys.argv[1], "rb").read(); w, h, d, c = struct.unpack(">IIBB", b[16:26]); print(b[:8] == b"\x89PNG\r\n\x1a\n" and b[12:16] == b"IHDR", w, h, d, c)' "$WORK/bunny.png")"
 expect_eq "PNG ends with IEND" "True" "$(python3 -c 'import sys; print(open(sys.argv[1], "rb").read()[-8:-4] == b"IEND")' "$WORK/bunny.png")"

@@ -321,12 +321,50 @@ typedef enum as_device {
     AS_DEVICE_GPU = 2
 } as_device_t;
 
+typedef enum as_schedule {
+    AS_SCHEDULE_AUTO = 0,        /* the fastest measured on the H100: one thread per ray
+                                    (docs/results/2026-11-22-workloads-sanmiguel-h100.md) */
+    AS_SCHEDULE_THREAD_PER_RAY = 1,
+    AS_SCHEDULE_PERSISTENT = 2   /* persistent threads fetching a batch of rays per atomic */
+} as_schedule_t;
+
+typedef enum as_residency {
+    AS_RESIDENCY_AUTO = 0,       /* device memory when the structure fits, else zero-copy */
+    AS_RESIDENCY_DEVICE = 1,     /* copy the sections to device memory */
+    AS_RESIDENCY_ZERO_COPY = 2   /* kernels read the mapped file in place (registered host memory) */
+} as_residency_t;
+
+typedef enum as_upload_method {
+    AS_UPLOAD_AUTO = 0,          /* the fastest measured: pageable on the H100 */
+    AS_UPLOAD_PAGEABLE = 1,      /* cudaMemcpy straight from the mapping */
+    AS_UPLOAD_PINNED_PIPELINE = 2, /* threads copy the mapping into a ring of pinned
+                                    buffers, uploaded asynchronously */
+    AS_UPLOAD_REGISTERED = 3     /* cudaHostRegister the mapping, then copy */
+} as_upload_method_t;
+
+typedef enum as_intersector {
+    AS_INTERSECTOR_WATERTIGHT = 0,        /* Woop et al. 2013 in float, explicitly rounded */
+    AS_INTERSECTOR_WATERTIGHT_DOUBLE = 1  /* the same test in double: also exact where float
+                                             cancels (huge or tiny triangles for their distance) */
+} as_intersector_t;
+
 typedef struct as_trace_args {
     size_t size;
     as_device_t device;
     uint32_t thread_count;       /* CPU: 0 = every core */
     bool any_hit;                /* stop at the first hit (shadow rays) */
     uint32_t timed_runs;         /* GPU: launches to time, median reported; default 5 */
+    as_schedule_t schedule;      /* GPU */
+    uint32_t batch;              /* GPU persistent threads: rays per atomic (default 32) */
+    bool collect_stats;          /* also count steps and triangle tests per ray, in a
+                                    separate pass (GPU: a separately compiled kernel)
+                                    so the timed pass does not pay for counting */
+    as_intersector_t intersector;
+    as_residency_t residency;    /* GPU: where the structure lives (first GPU trace) */
+    as_upload_method_t upload;   /* GPU: how sections reach device memory */
+    uint64_t device_memory_limit; /* GPU: bytes the structure may take in device
+                                    memory (0: the device's free memory); beyond
+                                    it AS_RESIDENCY_AUTO reads in place */
 } as_trace_args_t;
 void as_trace_args_default(as_trace_args_t *args);
 
@@ -337,11 +375,61 @@ typedef struct as_trace_timing {
     double upload_ms;            /* GPU: structure and rays to the device */
     uint64_t upload_bytes;
     char device_name[128];
+    uint32_t timed_runs;         /* launches behind trace_ms */
+    double trace_ms_min, trace_ms_max;
+    /* With collect_stats: traversal steps (nodes visited, leaves included)
+     * and ray/triangle tests per ray. */
+    bool have_stats;
+    double steps_avg, tests_avg;
+    uint32_t steps_max, tests_max;
 } as_trace_timing_t;
+
+/* What the first GPU use of a structure cost. */
+typedef struct as_upload_info {
+    bool zero_copy;              /* kernels read the mapped file in place */
+    const char *method;          /* "pageable", "pinned pipeline", "registered", "zero-copy" */
+    uint64_t bytes;              /* section bytes the traversal reads */
+    double upload_ms;            /* host to device, wall clock */
+    double gb_per_s;
+} as_upload_info_t;
+
+/* Makes the structure resident on the GPU now (the first GPU trace does it
+ * otherwise); later traces reuse it until the structure is released. Not
+ * thread-safe against concurrent traces of the same structure. */
+as_error_t as_structure_upload(const as_structure_t *s, const as_trace_args_t *args, as_upload_info_t *info);
 
 /* Traces `count` rays. `timing` may be NULL. */
 as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
                     as_hit_t *hits, const as_trace_args_t *args, as_trace_timing_t *timing);
+
+/* Verification against a double-precision reference: the watertight test
+ * in double over a conservatively traversed BVH of the structure's own
+ * triangles. A hit agrees when it is the reference's primitive or a tie (a
+ * primitive hit within 1e-6 of the scene diagonal of the reference's t);
+ * any-hit results agree when they hit exactly when the reference does, on a
+ * triangle the ray really meets. */
+typedef struct as_verify_args {
+    size_t size;
+    size_t sample_count;         /* rays checked, spread over all (default 100,000; 0: all) */
+    uint64_t seed;               /* which rays are sampled */
+    uint32_t thread_count;       /* 0: every core */
+} as_verify_args_t;
+void as_verify_args_default(as_verify_args_t *args);
+
+typedef struct as_verify_result {
+    uint64_t checked;
+    uint64_t wrong_primitive;    /* hit, but neither the reference's triangle nor a tie */
+    uint64_t false_misses;       /* the reference hits, the trace missed */
+    uint64_t false_hits;         /* the reference misses, the trace hit */
+    double max_t_error;          /* largest |t - t_ref| / t_ref over agreeing closest hits
+                                    farther than 1e-3 of the scene diagonal */
+    double max_t_error_abs;      /* largest |t - t_ref| over all agreeing closest hits,
+                                    in units of the scene diagonal */
+    double verify_ms;
+} as_verify_result_t;
+
+as_error_t as_verify(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits, size_t count,
+                     bool any_hit, const as_verify_args_t *args, as_verify_result_t *result);
 
 /* True when this build has CUDA and a device is usable. */
 bool as_gpu_available(void);
@@ -375,12 +463,83 @@ void as_camera_default(const float bounds_lo[3], const float bounds_hi[3], as_ca
  * tmax infinity. `rays` has width * height entries. */
 void as_camera_rays(const as_camera_t *cam, uint32_t width, uint32_t height, as_ray_t *rays);
 
+/* The same rays in the order the GPU likes: 16 x 32 pixel tiles along a
+ * Morton curve, row-major inside a tile. pixel_of_ray[i] (if not NULL) is
+ * the row-major pixel index of ray i. */
+void as_camera_rays_tiled(const as_camera_t *cam, uint32_t width, uint32_t height, as_ray_t *rays,
+                          uint32_t *pixel_of_ray);
+
+/* ------------------------------------------------------------------------ */
+/* Workloads: secondary rays from primary hits                              */
+
+typedef struct as_secondary_args {
+    size_t size;
+    uint32_t rays_per_hit;       /* AO default 16, diffuse 4 */
+    float tmax_fraction;         /* tmax as a fraction of the scene diagonal
+                                    (AO default 0.1); 0: unbounded */
+    float offset_fraction;       /* origin offset along the geometric normal,
+                                    flipped to face the incoming ray, as a
+                                    fraction of the diagonal (default 1e-4) */
+    uint64_t seed;
+} as_secondary_args_t;
+void as_secondary_args_default(as_secondary_args_t *args);
+
+/* Cosine-weighted hemisphere rays from every primary hit (AO: any hit within
+ * tmax; diffuse: closest hit, unbounded). *out is malloc'd; (*origin)[i]
+ * (if origin is not NULL) is the primary ray that ray i comes from. */
+as_error_t as_rays_hemisphere(const as_structure_t *s, const as_ray_t *primary, const as_hit_t *hits,
+                              size_t count, const as_secondary_args_t *args, as_ray_t **out,
+                              size_t *out_count, uint32_t **origin);
+
+/* Shadow rays from every primary hit towards each light (a point), ending
+ * just short of it. */
+as_error_t as_rays_shadow(const as_structure_t *s, const as_ray_t *primary, const as_hit_t *hits,
+                          size_t count, const float *lights, uint32_t light_count,
+                          float offset_fraction, as_ray_t **out, size_t *out_count,
+                          uint32_t **origin);
+
+/* Whitted ray tracing, one bounce at a time: from rays and their hits, the
+ * next bounce's reflection and refraction rays and the shadow rays of the
+ * hits. Without a material file, a fixed, seeded share of the triangles
+ * are mirrors and glass (index of refraction `ior`), the rest opaque:
+ * opaque hits spawn shadow rays only, mirrors a reflection ray too, glass a
+ * refraction and a reflection ray (the reflection alone on total internal
+ * reflection). */
+typedef struct as_whitted_args {
+    size_t size;
+    float mirror_fraction;       /* default 0.10 */
+    float glass_fraction;        /* default 0.05 */
+    float ior;                   /* default 1.5 */
+    uint64_t seed;               /* which triangles are mirrors and glass */
+    float offset_fraction;       /* as in as_secondary_args_t (default 1e-4) */
+    const float *lights;         /* 3 floats per point light */
+    uint32_t light_count;
+} as_whitted_args_t;
+void as_whitted_args_default(as_whitted_args_t *args);
+
+/* The material of a triangle under these arguments: 0 opaque, 1 mirror,
+ * 2 glass. */
+int as_whitted_material(const as_whitted_args_t *args, uint32_t prim);
+
+as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits,
+                                  size_t count, const as_whitted_args_t *args, as_ray_t **next,
+                                  size_t *next_count, as_ray_t **shadow, size_t *shadow_count);
+
+/* Four point lights from the scene box, at 90% of its height along y over
+ * the quarter points of its x and z extent, so shadows fall inside the
+ * scene (as-trace --light overrides them). `lights` holds 12 floats. */
+void as_lights_default(const float bounds_lo[3], const float bounds_hi[3], float lights[12]);
+
 /* Shades the hits of as_camera_rays as a grey image lit from the camera (the
  * absolute cosine between the ray and the geometric normal), background dark
  * blue, and writes it as an 8-bit RGB PNG (temporary file, then rename). */
 as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays,
                               const as_hit_t *hits, uint32_t width, uint32_t height,
                               const char *path);
+
+/* Writes grey values in [0, 1], row-major, as an 8-bit RGB PNG; a negative
+ * value is drawn as the background (dark blue). */
+as_error_t as_image_write_png_grey(const char *path, uint32_t width, uint32_t height, const float *values);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,290 @@
+/* Build benchmark: every structure variant on every scene given, beside
+ * Embree 3's builders in the same run, as the reference builder.
+ *
+ *   bench_build [--runs N] [--threads N] [--out FILE.md] [--commit ID] SCENE...
+ *
+ * For each variant and scene: build time (median of N runs, monotonic
+ * clock), triangles per second, peak build memory (the rise of the resident
+ * set during one build, measured in a child process), structure memory and
+ * SAH cost. Embree: one triangle geometry, rtcCommitScene, every core,
+ * medium and high (spatial splits) quality, median of N. At the end the
+ * targets of the issue are checked as ratios and printed. A benchmark, not a
+ * test: it prints figures and asserts nothing. */
+#include "as/as.h"
+
+#include <embree3/rtcore.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/utsname.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+typedef struct variant {
+    const char *name;        /* the paper's row */
+    const char *structure, *builder, *layout;
+} variant;
+
+static const variant variants[] = {
+    {"BVH (Mid. Cut)", "bvh", "midcut", "bvh2-child-bounds"},
+    {"BVH (SAH, binned)", "bvh", "sah", "bvh2-child-bounds"},
+    {"BVH (SAH, sweep)", "bvh", "sweep", "bvh2-child-bounds"},
+    {"BVH (SBVH)", "bvh", "sbvh", "bvh2-child-bounds"},
+    {"KD Standard (Mid. Cut)", "kd", "midcut", "kd-standard"},
+    {"KD Standard (SAH)", "kd", "sah", "kd-standard"},
+    {"KD Ropes (Mid. Cut)", "kd", "midcut", "kd-ropes"},
+    {"KD Ropes (SAH)", "kd", "sah", "kd-ropes"},
+    {"BIH", "bih", "bih", "bih"},
+    {"Octree", "octree", "octree", "octree"},
+    {"Uniform Grid", "grid", "grid", "grid"},
+};
+#define NVARIANTS (sizeof variants / sizeof variants[0])
+
+typedef struct result {
+    int ok;
+    double ms;               /* median */
+    double peak_mb;
+    double size_mb;
+    double sah;
+    char error[160];
+} result;
+
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+static double median(double *v, int n)
+{
+    qsort(v, (size_t)n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+static long rss_kb(void)
+{
+    FILE *f = fopen("/proc/self/statm", "r");
+    long pages = 0, resident = 0;
+    if (f) {
+        if (fscanf(f, "%ld %ld", &pages, &resident) != 2) resident = 0;
+        fclose(f);
+    }
+    return resident * (sysconf(_SC_PAGESIZE) / 1024);
+}
+
+/* Runs the builds of one variant in a child, so that its peak resident set
+ * is the build's alone; the result comes back through a pipe. */
+static result run_variant(const as_mesh_t *mesh, const variant *v, int runs, unsigned threads)
+{
+    result r;
+    memset(&r, 0, sizeof r);
+    as_build_args_t args;
+    as_build_args_default(&args);
+    args.structure = as_structure_kind_from_name(v->structure);
+    args.builder = as_builder_from_name(args.structure, v->builder);
+    args.layout = as_layout_from_name(v->layout);
+    args.thread_count = threads;
+    if (!args.structure || !args.builder || !args.layout) {
+        snprintf(r.error, sizeof r.error, "not in this build");
+        return r;
+    }
+    int fd[2];
+    if (pipe(fd) != 0) return r;
+    const pid_t pid = fork();
+    if (pid == 0) {
+        close(fd[0]);
+        result c;
+        memset(&c, 0, sizeof c);
+        double times[64];
+        const long rss0 = rss_kb();
+        for (int i = 0; i < runs && i < 64; ++i) {
+            const double t0 = now_ms();
+            as_structure_t *s = as_structure_build(mesh, &args);
+            times[i] = now_ms() - t0;
+            if (!s) {
+                snprintf(c.error, sizeof c.error, "%s", as_get_error_message());
+                break;
+            }
+            if (i == 0) {
+                struct rusage ru;
+                getrusage(RUSAGE_SELF, &ru);
+                c.peak_mb = (ru.ru_maxrss - rss0) / 1024.0;
+                as_structure_stats_t st;
+                as_structure_get_stats(s, &st);
+                c.size_mb = st.structure_bytes / 1e6;
+                c.sah = st.sah_cost;
+            }
+            as_structure_release(s);
+            if (i == runs - 1) {
+                c.ok = 1;
+                c.ms = median(times, runs);
+            }
+        }
+        if (write(fd[1], &c, sizeof c) != (ssize_t)sizeof c) _exit(1);
+        _exit(0);
+    }
+    close(fd[1]);
+    if (read(fd[0], &r, sizeof r) != (ssize_t)sizeof r) snprintf(r.error, sizeof r.error, "builder process died");
+    close(fd[0]);
+    int status;
+    waitpid(pid, &status, 0);
+    return r;
+}
+
+static double embree_build(const as_mesh_t *mesh, enum RTCBuildQuality quality, int runs, double *sah_out)
+{
+    as_mesh_info_t info;
+    as_mesh_get_info(mesh, &info);
+    RTCDevice dev = rtcNewDevice(NULL);
+    double times[64];
+    for (int i = 0; i < runs && i < 64; ++i) {
+        RTCScene scene = rtcNewScene(dev);
+        rtcSetSceneBuildQuality(scene, quality);
+        RTCGeometry g = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+        rtcSetGeometryBuildQuality(g, quality);
+        float *vb = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                            info.vertex_count);
+        unsigned *ib = rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                               info.triangle_count);
+        memcpy(vb, as_mesh_positions(mesh), sizeof(float) * 3 * info.vertex_count);
+        memcpy(ib, as_mesh_indices(mesh), sizeof(unsigned) * 3 * info.triangle_count);
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(scene, g);
+        rtcReleaseGeometry(g);
+        const double t0 = now_ms();
+        rtcCommitScene(scene);
+        times[i] = now_ms() - t0;
+        rtcReleaseScene(scene);
+    }
+    rtcReleaseDevice(dev);
+    *sah_out = NAN; /* Embree does not expose its tree's SAH cost */
+    return median(times, runs);
+}
+
+int main(int argc, char **argv)
+{
+    int runs = 5;
+    unsigned threads = 0;
+    const char *out = NULL, *commit = "unknown";
+    int first = 1;
+    for (; first < argc && argv[first][0] == '-'; ++first) {
+        if (!strcmp(argv[first], "--runs") && first + 1 < argc) runs = atoi(argv[++first]);
+        else if (!strcmp(argv[first], "--threads") && first + 1 < argc) threads = (unsigned)atoi(argv[++first]);
+        else if (!strcmp(argv[first], "--out") && first + 1 < argc) out = argv[++first];
+        else if (!strcmp(argv[first], "--commit") && first + 1 < argc) commit = argv[++first];
+        else {
+            fprintf(stderr, "usage: %s [--runs N] [--threads N] [--out FILE.md] [--commit ID] SCENE...\n", argv[0]);
+            return 1;
+        }
+    }
+    if (runs < 1 || runs > 64 || first >= argc) {
+        fprintf(stderr, "usage: %s [--runs N] [--threads N] [--out FILE.md] [--commit ID] SCENE...\n", argv[0]);
+        return 1;
+    }
+    FILE *md = out ? fopen(out, "w") : NULL;
+    if (out && !md) { perror(out); return 2; }
+    struct utsname un;
+    uname(&un);
+    char cpu[256] = "unknown";
+    FILE *ci = fopen("/proc/cpuinfo", "r");
+    if (ci) {
+        char line[512];
+        while (fgets(line, sizeof line, ci))
+            if (!strncmp(line, "model name", 10)) {
+                const char *c = strchr(line, ':');
+                if (c) snprintf(cpu, sizeof cpu, "%s", c + 2);
+                cpu[strcspn(cpu, "\n")] = 0;
+                break;
+            }
+        fclose(ci);
+    }
+    char date[64];
+    const time_t now = time(NULL);
+    strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
+    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    char header[1024];
+    snprintf(header, sizeof header,
+             "date %s; machine %s %s, %s, %ld cores; commit %s; libas %s; Embree %d.%d.%d; median of %d builds, %s threads\n",
+             date, un.nodename, un.machine, cpu, cores, commit, as_version_string(), RTC_VERSION_MAJOR,
+             RTC_VERSION_MINOR, RTC_VERSION_PATCH, runs, threads ? "fixed" : "all");
+    printf("%s", header);
+    if (md) fprintf(md, "# Build benchmark\n\n%s\n", header);
+
+    for (int si = first; si < argc; ++si) {
+        as_mesh_t *mesh = as_mesh_import(argv[si]);
+        if (!mesh) {
+            fprintf(stderr, "%s\n", as_get_error_message());
+            continue;
+        }
+        as_mesh_info_t info;
+        as_mesh_get_info(mesh, &info);
+        const double mtri = info.triangle_count / 1e6;
+        printf("\n%s: %u triangles\n", argv[si], info.triangle_count);
+        printf("%-24s %10s %10s %10s %10s %10s\n", "variant", "build ms", "Mtris/s", "peak MB", "size MB", "SAH cost");
+        if (md) {
+            fprintf(md, "\n## %s (%u triangles)\n\n| variant | build ms | M triangles/s | peak build MB | structure MB | SAH cost |\n|---|---:|---:|---:|---:|---:|\n",
+                    argv[si], info.triangle_count);
+        }
+        result res[NVARIANTS];
+        for (size_t v = 0; v < NVARIANTS; ++v) {
+            res[v] = run_variant(mesh, &variants[v], runs, threads);
+            if (res[v].ok) {
+                printf("%-24s %10.1f %10.2f %10.1f %10.2f %10.3f\n", variants[v].name, res[v].ms, mtri / (res[v].ms / 1e3),
+                       res[v].peak_mb, res[v].size_mb, res[v].sah);
+                if (md) fprintf(md, "| %s | %.1f | %.2f | %.1f | %.2f | %.3f |\n", variants[v].name, res[v].ms,
+                                mtri / (res[v].ms / 1e3), res[v].peak_mb, res[v].size_mb, res[v].sah);
+            } else {
+                printf("%-24s %s\n", variants[v].name, res[v].error);
+                if (md) fprintf(md, "| %s | %s | | | | |\n", variants[v].name, res[v].error);
+            }
+            fflush(stdout);
+        }
+        double sah_dummy;
+        const double em = embree_build(mesh, RTC_BUILD_QUALITY_MEDIUM, runs, &sah_dummy);
+        const double eh = embree_build(mesh, RTC_BUILD_QUALITY_HIGH, runs, &sah_dummy);
+        printf("%-24s %10.1f %10.2f\n%-24s %10.1f %10.2f\n", "Embree 3 medium", em, mtri / (em / 1e3), "Embree 3 high (spatial)",
+               eh, mtri / (eh / 1e3));
+        if (md) fprintf(md, "| Embree 3 medium | %.1f | %.2f | | | |\n| Embree 3 high (spatial splits) | %.1f | %.2f | | | |\n",
+                        em, mtri / (em / 1e3), eh, mtri / (eh / 1e3));
+
+        /* The issue's targets, as ratios within this run. */
+        const result *mid = &res[0], *bin = &res[1], *sweep = &res[2], *sbvh = &res[3], *kdsah = &res[5], *bih = &res[8],
+                     *grid = &res[10];
+        char lines[6][200];
+        int nl = 0;
+#define TARGET(cond_ok, have, ...) do { \
+            snprintf(lines[nl], sizeof lines[nl], __VA_ARGS__); \
+            printf("  %-4s %s\n", !(have) ? "n/a" : (cond_ok) ? "met" : "MISS", lines[nl]); \
+            if (md) \
+                fprintf(md, "%s- %s: %s\n", nl ? "" : "\nTargets:\n\n", \
+                        !(have) ? "n/a" : (cond_ok) ? "met" : "missed", lines[nl]); \
+            ++nl; \
+        } while (0)
+        TARGET(bin->ms <= em, bin->ok, "binned SAH %.0f ms vs Embree medium %.0f ms (ratio %.2f, target <= 1)", bin->ms, em, bin->ms / em);
+        TARGET(bin->sah <= 1.03 * sweep->sah, bin->ok && sweep->ok, "binned SAH cost %.3f vs sweep %.3f (+%.1f%%, target <= +3%%)", bin->sah,
+               sweep->sah, 100.0 * (bin->sah / sweep->sah - 1.0));
+        TARGET(sbvh->ms <= eh && sbvh->sah < bin->sah, sbvh->ok && bin->ok,
+               "SBVH %.0f ms vs Embree high %.0f ms (ratio %.2f, target <= 1); SAH %.3f vs binned %.3f (target lower)", sbvh->ms, eh,
+               sbvh->ms / eh, sbvh->sah, bin->sah);
+        TARGET(kdsah->ms <= 5.0 * bin->ms, kdsah->ok && bin->ok, "KD SAH %.0f ms vs binned SAH %.0f ms (ratio %.2f, target <= 5)",
+               kdsah->ms, bin->ms, kdsah->ms / bin->ms);
+        TARGET(grid->ms < bin->ms && bih->ms < bin->ms, grid->ok && bih->ok && bin->ok,
+               "grid %.0f ms and BIH %.0f ms vs binned SAH %.0f ms (target faster)", grid->ms, bih->ms, bin->ms);
+        (void)mid;
+#undef TARGET
+        as_mesh_release(mesh);
+    }
+    if (md) fclose(md);
+    return 0;
+}

@@ -1,0 +1,11 @@
+# The stiff-case suite on every registered variant (as_add_stiff in
+# variants.cmake's families).
+add_executable(test_stiff test_stiff.c)
+target_link_libraries(test_stiff PRIVATE as_internal)
+target_compile_definitions(test_stiff PRIVATE _POSIX_C_SOURCE=200809L AS_SCENES_DIR="${AS_SCENES_DIR}"
+  AS_SOURCE_DIR="${PROJECT_SOURCE_DIR}" AS_BINARY_DIR="${PROJECT_BINARY_DIR}")
+function(as_add_stiff name structure builder layout)
+  add_test(NAME stiff_${name} COMMAND test_stiff ${structure} ${builder} ${layout})
+  set_tests_properties(stiff_${name} PROPERTIES SKIP_RETURN_CODE 77 LABELS stiff)
+endfunction()
+as_add_stiff(bvh_sah bvh sah bvh2-child-bounds)
