@@ -387,6 +387,13 @@ static void sbvh_recursive(sbvh_ctx *ctx, int32_t node, bvh_ref *refs, uint32_t 
         ok = partition_spatial(b, refs, count, &ss, &sd);
         /* A split that leaves a side empty or overspends falls back. */
         if (ok && (sd.nl == 0 || sd.nr == 0 || (uint64_t)sd.nl + sd.nr - count > budget)) ok = 0;
+        /* The bins only estimate the cost: a split that turns out no
+         * cheaper than the object split, once clipped and unsplit, falls
+         * back too. */
+        if (ok && os.axis >= 0) {
+            const bvh_box lb = bvh_refs_box(sd.l, sd.nl), rb = bvh_refs_box(sd.r, sd.nr);
+            if (bvh_box_half_area(&lb) * sd.nl + bvh_box_half_area(&rb) * sd.nr >= os.cost) ok = 0;
+        }
         if (!ok) sides_free(&sd);
     }
     if (!ok && os.axis >= 0) {
