@@ -28,6 +28,7 @@
 #define ASF_TAG_OCTN ASF_TAG('O', 'C', 'T', 'N') /* as_octree_node_t[], octree nodes */
 #define ASF_TAG_GRDH ASF_TAG('G', 'R', 'D', 'H') /* as_grid_header_t, dimensions and box */
 #define ASF_TAG_GRDC ASF_TAG('G', 'R', 'D', 'C') /* uint32_t[cells + 1], cell offsets into PRIM */
+#define ASF_TAG_BVHO ASF_TAG('B', 'V', 'H', 'O') /* as_bvh2o_node_t[], own-bounds layout */
 
 /* Section flags. */
 #define ASF_SECTION_REQUIRED 0x1u   /* a reader that does not know the tag must refuse */

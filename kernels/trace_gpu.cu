@@ -2,6 +2,7 @@
 // The algorithm lives in the header; this file moves data, schedules rays
 // and times launches.
 #include "bvh2_traverse.h"
+#include "bvh2_own_traverse.h"
 #include "bih_traverse.h"
 #include "grid_traverse.h"
 #include "octree_traverse.h"
@@ -39,6 +40,15 @@ struct bvh2_traversal {
     __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
     {
         as_bvh2_trace(nodes, tris, r, any_hit, h, c);
+    }
+};
+
+struct bvh2_own_traversal {
+    const as_bvh2o_node_t *nodes;
+    const as_tri4_t *tris;
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_bvh2o_trace(nodes, tris, r, any_hit, h, c);
     }
 };
 
@@ -399,6 +409,10 @@ extern "C" as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, 
     switch (layout) {
     case AS_LAYOUT_BVH2_CHILD_BOUNDS: {
         const bvh2_traversal t = {(const as_bvh2_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    case AS_LAYOUT_BVH2_OWN_BOUNDS: {
+        const bvh2_own_traversal t = {(const as_bvh2o_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
         return launch_traversal(t, g, rays, count, hits, launch, timing);
     }
     case AS_LAYOUT_BIH: {

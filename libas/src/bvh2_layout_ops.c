@@ -4,6 +4,7 @@
 #include "bvh2_traverse.h"
 #include "trace_gpu.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 static double half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
@@ -84,6 +85,25 @@ static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit
     }
 }
 
+static as_error_t bvh2_convert(const as_structure_t *src, uint32_t target, as_structure_t *dst)
+{
+    if (target == AS_LAYOUT_BVH2_OWN_BOUNDS) return as_bvh2_to_own_bounds(src, dst);
+    if (target == AS_LAYOUT_BVH2_CHILD_BOUNDS) {
+        /* Same layout: a copy. */
+        const as_section_t *ns = as_structure_find(src, ASF_TAG_BVH2), *ts = as_structure_find(src, ASF_TAG_TRI4);
+        void *n = as_aligned_alloc(ns->bytes ? ns->bytes : 1, "BVH2 nodes");
+        void *t = as_aligned_alloc(ts->bytes ? ts->bytes : 1, "TRI4 triangles");
+        if (!n || !t) { free(n); free(t); return as_get_error(); }
+        memcpy(n, ns->data, ns->bytes);
+        if (ts->bytes) memcpy(t, ts->data, ts->bytes);
+        dst->meta = src->meta;
+        as_structure_add_section(dst, ASF_TAG_BVH2, n, ns->count, sizeof(as_bvh2_node_t));
+        as_structure_add_section(dst, ASF_TAG_TRI4, t, ts->count, sizeof(as_tri4_t));
+        return AS_OK;
+    }
+    return as_set_error(AS_ERROR_UNSUPPORTED, "a BVH converts only to bvh2-child-bounds or bvh2-own-bounds");
+}
+
 
 const as_layout_ops_t as_layout_bvh2_child_bounds = {
     .structure_kind = AS_STRUCT_BVH,
@@ -99,6 +119,7 @@ const as_layout_ops_t as_layout_bvh2_child_bounds = {
     .validate = as_bvh2_validate,
     .stats = bvh2_stats,
     .trace_cpu = bvh2_trace_cpu,
+    .convert = bvh2_convert,
 #ifdef AS_HAVE_CUDA
     .trace_gpu = as_layout_trace_gpu,
 #endif

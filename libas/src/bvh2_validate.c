@@ -5,6 +5,7 @@
 #include "bvh2_layout.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -25,18 +26,8 @@ static void child_box(const as_bvh2_node_t *n, int k, float b[6])
     else        { b[0] = n->xy1.x; b[1] = n->xy1.y; b[2] = n->xy1.z; b[3] = n->xy1.w; b[4] = n->z01.z; b[5] = n->z01.w; }
 }
 
-as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
+as_error_t as_bvh2_validate_tris(const as_structure_t *s, const char *name, const as_tri4_t *tris, uint64_t tri_count)
 {
-    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
-    if (!ns || !ts) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: BVH2 or TRI4 section missing", name);
-    const as_bvh2_node_t *nodes = ns->data;
-    const as_tri4_t *tris = ts->data;
-    const uint64_t node_count = ns->count, tri_count = ts->count;
-    if (node_count == 0) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: no root node", name);
-    if (node_count > INT32_MAX || tri_count > INT32_MAX)
-        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %llu nodes / %llu triangles exceed the 31-bit index range",
-                            name, (unsigned long long)node_count, (unsigned long long)tri_count);
-
     /* Triangles: finite vertices and source indices within the mesh. */
     for (uint64_t i = 0; i < tri_count; ++i) {
         const as_tri4_t *t = &tris[i];
@@ -50,12 +41,92 @@ as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
                                 "%s: TRI4 triangle %llu refers to source triangle %u but META says the mesh has %u",
                                 name, (unsigned long long)i, prim, s->meta.triangle_count);
     }
+    return AS_OK;
+}
+
+as_error_t as_bvh2_validate_leaf(const as_structure_t *s, const char *name, const as_tri4_t *tris, uint64_t tri_count,
+                                 uint8_t *tri_seen, uint64_t first, uint64_t count, const float b[6], const char *where)
+{
+    if (first > tri_count || count > tri_count - first)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %s: leaf triangles [%llu, %llu) outside the %llu of TRI4",
+                            name, where, (unsigned long long)first, (unsigned long long)(first + count),
+                            (unsigned long long)tri_count);
+    if (!finite6(b[0], b[1], b[2], b[3], b[4], b[5]) || !(b[0] <= b[1] && b[2] <= b[3] && b[4] <= b[5]))
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %s (a leaf) has a non-finite or inverted box", name, where);
+    /* An SBVH leaf box bounds only the part of a triangle it holds (the
+     * reference was clipped): the triangle's box must overlap it. Any other
+     * builder's leaf box holds its triangles whole. */
+    const int clipped = s->meta.builder == AS_BUILDER_BVH_SBVH;
+    for (uint64_t t = first; t < first + count; ++t) {
+        if (tri_seen[t])
+            return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 triangle %llu is in two leaves (again under %s)",
+                                name, (unsigned long long)t, where);
+        tri_seen[t] = 1;
+        const as_f4_t *v[3] = {&tris[t].v0, &tris[t].v1, &tris[t].v2};
+        float tb[6] = {v[0]->x, v[0]->x, v[0]->y, v[0]->y, v[0]->z, v[0]->z};
+        for (int j = 0; j < 3; ++j) {
+            const float c[3] = {v[j]->x, v[j]->y, v[j]->z};
+            for (int a = 0; a < 3; ++a) {
+                tb[2 * a] = fminf(tb[2 * a], c[a]);
+                tb[2 * a + 1] = fmaxf(tb[2 * a + 1], c[a]);
+            }
+        }
+        const int ok = clipped ? tb[0] <= b[1] && tb[1] >= b[0] && tb[2] <= b[3] && tb[3] >= b[2] && tb[4] <= b[5] &&
+                                     tb[5] >= b[4]
+                               : box_inside(tb, b);
+        if (!ok)
+            return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 triangle %llu lies outside the box of its leaf (%s)",
+                                name, (unsigned long long)t, where);
+    }
+    return AS_OK;
+}
+
+as_error_t as_bvh2_validate_counts(const as_structure_t *s, const char *name, const char *section, uint64_t node_count,
+                                   uint64_t tri_count, uint64_t leaves, uint64_t references, uint32_t max_leaf_depth)
+{
+    /* Every TRI4 entry is in exactly one leaf (an SBVH may hold one source
+     * triangle several times, as several entries). */
+    if (references != tri_count)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 holds %llu triangles but the leaves reference %llu",
+                            name, (unsigned long long)tri_count, (unsigned long long)references);
+    /* META's counts describe the arrays; readers that size buffers from
+     * them (statistics, the study) must be able to trust them. */
+    if (s->meta.node_count != node_count)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says %llu nodes but %s holds %llu", name,
+                            (unsigned long long)s->meta.node_count, section, (unsigned long long)node_count);
+    if (s->meta.leaf_count != leaves)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META leaf count is %llu but the tree has %llu leaves", name,
+                            (unsigned long long)s->meta.leaf_count, (unsigned long long)leaves);
+    if (s->meta.reference_count != references || s->meta.empty_leaf_count != 0)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE,
+                            "%s: META reference count %llu and empty leaf count %llu, but the leaves hold %llu references and none is empty",
+                            name, (unsigned long long)s->meta.reference_count,
+                            (unsigned long long)s->meta.empty_leaf_count, (unsigned long long)references);
+    if (s->meta.max_depth != max_leaf_depth)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says max depth %u but the deepest leaf is at %u", name,
+                            s->meta.max_depth, max_leaf_depth);
+    return AS_OK;
+}
+
+as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
+    if (!ns || !ts) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: BVH2 or TRI4 section missing", name);
+    const as_bvh2_node_t *nodes = ns->data;
+    const as_tri4_t *tris = ts->data;
+    const uint64_t node_count = ns->count, tri_count = ts->count;
+    if (node_count == 0) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: no root node", name);
+    if (node_count > INT32_MAX || tri_count > INT32_MAX)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %llu nodes / %llu triangles exceed the 31-bit index range",
+                            name, (unsigned long long)node_count, (unsigned long long)tri_count);
+
+    as_error_t err = as_bvh2_validate_tris(s, name, tris, tri_count);
+    if (err != AS_OK) return err;
 
     uint8_t *node_seen = calloc(node_count, 1);
     uint8_t *tri_seen = calloc(tri_count ? tri_count : 1, 1);
     int32_t *stack = malloc(sizeof(int32_t) * (AS_BVH2_MAX_DEPTH + 1));
     uint32_t *depths = malloc(sizeof(uint32_t) * (AS_BVH2_MAX_DEPTH + 1));
-    as_error_t err = AS_OK;
     if (!node_seen || !tri_seen || !stack || !depths) {
         err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "%s: out of memory validating", name);
         goto done;
@@ -105,52 +176,17 @@ as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
                 ++leaves;
                 references += count;
                 if (depth + 1 > max_leaf_depth) max_leaf_depth = depth + 1;
-                if (first > tri_count || count > tri_count - first) {
-                    err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: node %d child %d: leaf triangles [%llu, %llu) outside the %llu of TRI4", name, ni, k,
-                                       (unsigned long long)first, (unsigned long long)(first + count), (unsigned long long)tri_count);
-                    break;
-                }
-                if (!finite6(b[0], b[1], b[2], b[3], b[4], b[5])) {
-                    err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: node %d child %d (a leaf) has a non-finite box", name, ni, k);
-                    break;
-                }
-                for (uint64_t t = first; t < first + count; ++t) {
-                    if (tri_seen[t]) {
-                        err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 triangle %llu is in two leaves (again under node %d)", name, (unsigned long long)t, ni);
-                        break;
-                    }
-                    tri_seen[t] = 1;
-                    const as_f4_t *v[3] = {&tris[t].v0, &tris[t].v1, &tris[t].v2};
-                    for (int j = 0; j < 3; ++j) {
-                        if (v[j]->x < b[0] || v[j]->x > b[1] || v[j]->y < b[2] || v[j]->y > b[3] || v[j]->z < b[4] || v[j]->z > b[5]) {
-                            err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 triangle %llu lies outside the box of its leaf (node %d child %d)", name, (unsigned long long)t, ni, k);
-                            break;
-                        }
-                    }
-                    if (err != AS_OK) break;
-                }
+                char where[64];
+                snprintf(where, sizeof where, "node %d child %d", ni, k);
+                err = as_bvh2_validate_leaf(s, name, tris, tri_count, tri_seen, first, count, b, where);
             }
         }
     }
     if (err == AS_OK && reached != node_count)
         err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %llu of %llu nodes are not reachable from the root", name,
                            (unsigned long long)(node_count - reached), (unsigned long long)node_count);
-    /* META's counts describe the arrays; readers that size buffers from
-     * them (statistics, the study) must be able to trust them. */
-    if (err == AS_OK && s->meta.node_count != node_count)
-        err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says %llu nodes but BVH2 holds %llu", name,
-                           (unsigned long long)s->meta.node_count, (unsigned long long)node_count);
-    if (err == AS_OK && s->meta.leaf_count != leaves)
-        err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META leaf count is %llu but the tree has %llu leaves", name,
-                           (unsigned long long)s->meta.leaf_count, (unsigned long long)leaves);
-    if (err == AS_OK && (s->meta.reference_count != references || s->meta.empty_leaf_count != 0))
-        err = as_set_error(AS_ERROR_INVALID_STRUCTURE,
-                           "%s: META reference count %llu and empty leaf count %llu, but the leaves hold %llu references and none is empty",
-                           name, (unsigned long long)s->meta.reference_count,
-                           (unsigned long long)s->meta.empty_leaf_count, (unsigned long long)references);
-    if (err == AS_OK && s->meta.max_depth != max_leaf_depth)
-        err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says max depth %u but the deepest leaf is at %u", name,
-                           s->meta.max_depth, max_leaf_depth);
+    if (err == AS_OK)
+        err = as_bvh2_validate_counts(s, name, "BVH2", node_count, tri_count, leaves, references, max_leaf_depth);
 done:
     free(node_seen);
     free(tri_seen);

@@ -103,6 +103,7 @@ const as_layout_ops_t *as_layout_find(uint32_t structure_kind, uint32_t layout);
 const as_layout_ops_t *as_structure_ops(const as_structure_t *s);
 
 extern const as_layout_ops_t as_layout_bvh2_child_bounds;
+extern const as_layout_ops_t as_layout_bvh2_own_bounds;
 
 /* The trace_gpu of every layout with a CUDA kernel: launches the kernel of
  * s->meta.layout over the resident sections. */
@@ -111,10 +112,32 @@ as_error_t as_layout_trace_gpu(const as_structure_t *s, const as_ray_t *rays, si
 
 /* Builders: fill s->meta (kind, layout, parameters, counts) and sections. */
 as_error_t as_bvh_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+as_error_t as_bvh_build_midcut(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+as_error_t as_bvh_build_sweep(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
 
 /* SAH cost of a BVH2, from the stored layout. */
 double as_bvh2_sah_cost(const as_structure_t *s);
 as_error_t as_bvh2_validate(const as_structure_t *s, const char *name);
+/* Parts of the BVH2 validation shared by both BVH layouts (bvh2_validate.c):
+ * the TRI4 triangles; one leaf (range, box, each entry in one leaf only,
+ * triangles inside the box or, for an SBVH, overlapping it; `where` names
+ * the node); META's counts against the arrays. */
+struct as_tri4;
+as_error_t as_bvh2_validate_tris(const as_structure_t *s, const char *name, const struct as_tri4 *tris,
+                                 uint64_t tri_count);
+as_error_t as_bvh2_validate_leaf(const as_structure_t *s, const char *name, const struct as_tri4 *tris,
+                                 uint64_t tri_count, uint8_t *tri_seen, uint64_t first, uint64_t count,
+                                 const float box[6], const char *where);
+as_error_t as_bvh2_validate_counts(const as_structure_t *s, const char *name, const char *section, uint64_t node_count,
+                                   uint64_t tri_count, uint64_t leaves, uint64_t references, uint32_t max_leaf_depth);
+/* The BVH2 layouts into each other (bvh2_own_layout_ops.c): `dst` is zeroed
+ * and receives the same tree, META (counts, SAH cost) and a copy of TRI4.
+ * Child-bounds -> own-bounds -> child-bounds gives the same bytes for any
+ * tree a builder wrote. */
+as_error_t as_bvh2_to_own_bounds(const as_structure_t *src, as_structure_t *dst);
+as_error_t as_bvh2_own_to_child_bounds(const as_structure_t *src, as_structure_t *dst);
+as_error_t as_bvh2_own_validate(const as_structure_t *s, const char *name);
 
 /* BIH, octree and uniform grid: builders, validators, SAH costs (from the
  * stored structure; `st` may be NULL, else its counts and histograms are

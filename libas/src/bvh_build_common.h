@@ -1,0 +1,133 @@
+/* What every BVH builder shares: primitive references, the temporary tree,
+ * progress and cancellation, subtree threads, and the final depth-first walk
+ * that writes the BVH2 child-bounds layout (and, when asked, converts it to
+ * the own-bounds layout). Each builder only decides how a node splits. */
+#ifndef AS_BVH_BUILD_COMMON_H
+#define AS_BVH_BUILD_COMMON_H
+
+#include "structure.h"
+#include "mesh.h"
+#include "bvh2_layout.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+
+/* Subtrees larger than this may be built on another thread. */
+#define BVH_PARALLEL_MIN_PRIMS 16384
+#define BVH_MAX_BINS 256
+
+/* 32 bytes: a triangle's (possibly clipped, SBVH) box and its source index. */
+typedef struct bvh_ref {
+    float lo[3];
+    uint32_t id;
+    float hi[3];
+    float pad;
+} bvh_ref;
+
+typedef struct bvh_box {
+    float lo[3], hi[3];
+} bvh_box;
+
+/* A node of the temporary tree. A leaf points at its references: a range of
+ * the builder's array (in-place builders) or an array of its own (SBVH). */
+typedef struct bvh_tmp_node {
+    bvh_box box;
+    int32_t left, right;   /* tmp indices; -1 for a leaf */
+    uint32_t count;        /* leaf references */
+    const bvh_ref *refs;   /* leaf references, NULL when count is 0 */
+} bvh_tmp_node;
+
+typedef struct bvh_builder {
+    const as_build_args_t *args;
+    const as_mesh_t *mesh;
+    bvh_ref *refs;            /* one per non-degenerate triangle, source order */
+    uint32_t ref_count;
+    bvh_box root_box;
+    bvh_tmp_node *nodes;
+    atomic_uint_fast64_t node_next;
+    uint64_t node_capacity;
+    atomic_int live_threads;
+    int max_threads;
+    atomic_uint_fast64_t prims_done;
+    uint64_t prim_total;
+    atomic_int cancelled;
+    pthread_mutex_t progress_lock;
+    double next_report;
+    uint32_t depth_limit;     /* a node at depth + 1 >= depth_limit is a leaf */
+} bvh_builder;
+
+/* Checks the arguments shared by every BVH builder, fills the references
+ * (degenerate triangles left out) and allocates node_capacity_per_ref x
+ * references + 3 tmp nodes. */
+as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_build_args_t *args,
+                            uint64_t node_capacity_per_ref);
+void bvh_builder_free(bvh_builder *b);
+
+static inline bvh_box bvh_box_empty(void)
+{
+    bvh_box b = {{3.402823466e38f, 3.402823466e38f, 3.402823466e38f},
+                 {-3.402823466e38f, -3.402823466e38f, -3.402823466e38f}};
+    return b;
+}
+
+static inline void bvh_box_grow(bvh_box *b, const float lo[3], const float hi[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        if (lo[k] < b->lo[k]) b->lo[k] = lo[k];
+        if (hi[k] > b->hi[k]) b->hi[k] = hi[k];
+    }
+}
+
+static inline float bvh_ref_centroid(const bvh_ref *r, int axis) { return 0.5f * (r->lo[axis] + r->hi[axis]); }
+
+/* Half the surface area, in double: SAH only compares ratios. */
+static inline double bvh_box_half_area(const bvh_box *b)
+{
+    const double dx = (double)b->hi[0] - b->lo[0], dy = (double)b->hi[1] - b->lo[1],
+                 dz = (double)b->hi[2] - b->lo[2];
+    if (dx < 0 || dy < 0 || dz < 0) return 0.0;
+    return dx * dy + dy * dz + dz * dx;
+}
+
+bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count);
+bvh_box bvh_refs_centroid_box(const bvh_ref *refs, uint32_t count);
+
+/* The best binned SAH object split (Wald 2007) of refs[0, count) whose
+ * centroid box is cb: axis -1 when every centroid coincides; cost is the sum
+ * of half-area x count of both sides. Ties go to the lower axis, then bin. */
+typedef struct bvh_object_split {
+    int axis;
+    int bin;         /* left side: bins [0, bin] */
+    double cost;
+    float cmin, scale;
+} bvh_object_split;
+bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb, uint32_t bin_count);
+int bvh_object_split_left(const bvh_ref *r, const bvh_object_split *s, uint32_t bin_count);
+
+/* Adds finished primitives to the progress and calls the callback (at most
+ * every 1%); a false return sets b->cancelled. */
+void bvh_report_progress(bvh_builder *b, uint64_t prims);
+/* A fresh tmp node index, or -1 when the capacity is exhausted. */
+int32_t bvh_new_node(bvh_builder *b);
+void bvh_make_leaf(bvh_builder *b, int32_t node, const bvh_ref *refs, uint32_t count);
+
+/* Runs fn(arg) on a new thread when a thread slot is free; returns 1 when
+ * it did (join with pthread_join), 0 when the caller must run it itself. */
+int bvh_spawn(bvh_builder *b, pthread_t *tid, void *(*fn)(void *), void *arg);
+/* For spawned work: call when the thread's function is done. */
+void bvh_thread_done(bvh_builder *b);
+
+/* In-place builders: a split function partitions refs [first, first+count)
+ * and returns the first index of the right part, in (first, first+count),
+ * or 0 to make a leaf. It is called only for count >= 2 below the depth cap. */
+typedef uint32_t (*bvh_split_fn)(bvh_builder *b, uint32_t first, uint32_t count, const bvh_box *node_box);
+/* Builds the whole tree over b->refs with `split`; returns the root. */
+int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split);
+
+/* Writes the tmp tree under `root` into `s` (META, BVH2 or BVHO, TRI4) in the
+ * layout args->layout asks for; sets the cancellation error if the build was
+ * cancelled. */
+as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id, as_structure_t *s,
+                              double t_start);
+
+#endif
