@@ -21,6 +21,11 @@
 #define ASF_TAG_META ASF_TAG('M', 'E', 'T', 'A') /* as_meta_t, required */
 #define ASF_TAG_BVH2 ASF_TAG('B', 'V', 'H', '2') /* as_bvh2_node_t[], child-bounds layout */
 #define ASF_TAG_TRI4 ASF_TAG('T', 'R', 'I', '4') /* as_tri4_t[], triangles in leaf order */
+#define ASF_TAG_TRIS ASF_TAG('T', 'R', 'I', 'S') /* as_tri4_t[], triangles in source order */
+#define ASF_TAG_PRIM ASF_TAG('P', 'R', 'I', 'M') /* uint32_t[], leaf lists of source triangle indices */
+#define ASF_TAG_KDN8 ASF_TAG('K', 'D', 'N', '8') /* as_kd_node_t[], KD nodes (8 bytes) */
+#define ASF_TAG_KDRP ASF_TAG('K', 'D', 'R', 'P') /* as_kd_ropes_t[], six ropes per KD leaf */
+#define ASF_TAG_KDLB ASF_TAG('K', 'D', 'L', 'B') /* as_kd_leaf_box_t[], KD leaf boxes */
 
 /* Section flags. */
 #define ASF_SECTION_REQUIRED 0x1u   /* a reader that does not know the tag must refuse */

@@ -89,6 +89,8 @@ typedef struct as_builder_entry {
 
 static const as_builder_entry_t builders[] = {
     {AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sah", as_bvh_build_sah},
+    {AS_STRUCT_KD, AS_BUILDER_KD_SAH, AS_LAYOUT_KD_STANDARD, "sah", as_kd_build_sah},
+    {AS_STRUCT_KD, AS_BUILDER_KD_MIDCUT, AS_LAYOUT_KD_STANDARD, "midcut", as_kd_build_midcut},
 };
 
 /* The kind's first builder stands for AS_BUILDER_DEFAULT. */
@@ -192,6 +194,8 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
 
 static const as_layout_ops_t *const layouts[] = {
     &as_layout_bvh2_child_bounds,
+    &as_layout_kd_standard,
+    &as_layout_kd_ropes,
 };
 
 const as_layout_ops_t *as_layout_find(uint32_t structure_kind, uint32_t layout)

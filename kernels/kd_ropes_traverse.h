@@ -1,0 +1,81 @@
+/* Stackless KD traversal with ropes (Havran 1998; Popov et al. 2007; the
+ * GPU form of Santos et al. 2012), written once for the CPU and the GPU.
+ *
+ * The ray starts at p = o + t0 d (three FMAs), t0 the entry into the scene
+ * box or tmin when the origin is inside, and descends from the root to the
+ * leaf holding p. After a leaf's triangles it leaves through the face of
+ * smallest exit distance (one of three floats of the leaf box, chosen by the
+ * ray's signs), follows that face's rope and descends from the rope's node to
+ * the leaf holding the new entry point. On the exit axis the entry point is
+ * the face's coordinate itself, not a rounded product, so the descent always
+ * crosses the face. Points on a split plane go to the side the ray moves
+ * towards; a ray lying in a split plane goes below: the builder references
+ * every triangle that touches a split plane on both sides (closed boxes), so
+ * either side holds whatever such a ray can hit.
+ *
+ * Hits are accepted as in kd_traverse.h: the closest so far is kept, and the
+ * walk stops once the next leaf starts beyond it (widened). */
+#ifndef AS_KD_ROPES_TRAVERSE_H
+#define AS_KD_ROPES_TRAVERSE_H
+
+#include "kd_traverse.h"
+
+#ifdef __CUDA_ARCH__
+#define AS_FMAF(a, b, c) __fmaf_rn((a), (b), (c))
+#else
+#define AS_FMAF(a, b, c) fmaf((a), (b), (c))
+#endif
+
+/* Traces one prepared ray through a KD tree with ropes. `box` is the root
+ * (scene) box, lo xyz then hi xyz; `leaf_count` bounds the walk (a valid tree
+ * never needs more steps; it only guards against a damaged one). */
+AS_HD void as_kd_ropes_trace(const as_kd_node_t *AS_RESTRICT nodes, const uint32_t *AS_RESTRICT prim,
+                             const as_tri4_t *AS_RESTRICT tris, const as_kd_ropes_t *AS_RESTRICT ropes,
+                             const as_kd_leaf_box_t *AS_RESTRICT leaf_boxes, uint32_t leaf_count,
+                             const float box[6], const as_ray_pre_t *r, int any_hit, as_hit_rec_t *hit,
+                             as_trace_counters_t *ctr)
+{
+    as_hit_rec_miss(hit);
+    float t, tend;
+    if (!as_kd_clip_scene(r, box, &t, &tend)) return;
+    const float o[3] = {r->ox, r->oy, r->oz}, d[3] = {r->dx, r->dy, r->dz}, inv[3] = {r->ix, r->iy, r->iz};
+    float p[3] = {AS_FMAF(t, d[0], o[0]), AS_FMAF(t, d[1], o[1]), AS_FMAF(t, d[2], o[2])};
+    int32_t node = 0;
+    uint64_t steps = 0;
+    const uint64_t max_steps = 2 * (uint64_t)leaf_count + 8;
+    for (;;) {
+        as_kd_node_t n = as_kd_load_node(nodes + node);
+        while (!as_kd_is_leaf(n.word1)) {
+            if (ctr) ctr->node_visits++;
+            const int axis = (int)(n.word1 & 3u);
+            const float split = as_uint_as_float(n.word0);
+            const int up = p[axis] > split || (p[axis] == split && d[axis] > 0.0f);
+            node = up ? (int32_t)(n.word1 >> 2) : node + 1;
+            n = as_kd_load_node(nodes + node);
+        }
+        if (as_kd_leaf(r, prim, tris, n.word0, any_hit, hit, ctr)) return;
+        const uint32_t leaf = n.word1 >> 2;
+        const as_kd_leaf_box_t *lb = leaf_boxes + leaf;
+        /* Exit face: the far side on each axis; an axis the ray is parallel
+         * to gives +inf or NaN, which never wins the comparison. */
+        int exit_axis = -1;
+        float texit = as_inf(), face = 0.0f;
+        for (int a = 0; a < 3; ++a) {
+            const float f = d[a] >= 0.0f ? lb->hi[a] : lb->lo[a];
+            const float ta = AS_MUL(AS_SUB(f, o[a]), inv[a]);
+            if (ta < texit) { texit = ta; exit_axis = a; face = f; }
+        }
+        if (exit_axis < 0) return;
+        if (texit > as_kd_widen(AS_MINF(hit->t, r->tmax))) return;
+        const int32_t next = ropes[leaf].rope[2 * exit_axis + (d[exit_axis] > 0.0f ? 1 : 0)];
+        if (next < 0 || ++steps > max_steps) return;
+        t = AS_MAXF(t, texit);
+        p[0] = AS_FMAF(t, d[0], o[0]);
+        p[1] = AS_FMAF(t, d[1], o[1]);
+        p[2] = AS_FMAF(t, d[2], o[2]);
+        p[exit_axis] = face;
+        node = next;
+    }
+}
+
+#endif
