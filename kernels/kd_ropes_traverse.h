@@ -9,7 +9,9 @@
  * the leaf holding the new entry point. On the exit axis the entry point is
  * the face's coordinate itself, not a rounded product, so the descent always
  * crosses the face. Points on a split plane go to the side the ray moves
- * towards; a ray lying in a split plane goes below: the builder references
+ * towards (a ray lying in the plane: below), and when the entry point lies
+ * exactly on split planes the leaves on their other sides are tested too
+ * (as_kd_ropes_descend). For rays lying in a split plane: the builder references
  * every triangle that touches a split plane on both sides (closed boxes), so
  * either side holds whatever such a ray can hit.
  *
@@ -26,6 +28,30 @@
 #define AS_FMAF(a, b, c) fmaf((a), (b), (c))
 #endif
 
+/* Descends from `node` to the leaf holding p. A point on a split plane goes
+ * to the side the ray moves into, except on `exit_axis` (the face just
+ * crossed, where p is exact) and when `combo` >= 0: then bit `axis` of combo
+ * picks the side (1 above) and the axis is recorded in *ties. */
+AS_HD int32_t as_kd_ropes_descend(const as_kd_node_t *AS_RESTRICT nodes, int32_t node, const float p[3],
+                                  const float d[3], int exit_axis, int combo, uint32_t *ties,
+                                  as_trace_counters_t *ctr)
+{
+    as_kd_node_t n = as_kd_load_node(nodes + node);
+    while (!as_kd_is_leaf(n.word1)) {
+        if (ctr) ctr->node_visits++;
+        const int axis = (int)(n.word1 & 3u);
+        const float split = as_uint_as_float(n.word0);
+        int up = p[axis] > split;
+        if (p[axis] == split) {
+            if (axis != exit_axis) *ties |= 1u << axis;
+            up = (combo >= 0 && axis != exit_axis) ? (combo >> axis) & 1 : d[axis] > 0.0f;
+        }
+        node = up ? (int32_t)(n.word1 >> 2) : node + 1;
+        n = as_kd_load_node(nodes + node);
+    }
+    return node;
+}
+
 /* Traces one prepared ray through a KD tree with ropes. `box` is the root
  * (scene) box, lo xyz then hi xyz; `leaf_count` bounds the walk (a valid tree
  * never needs more steps; it only guards against a damaged one). */
@@ -40,25 +66,38 @@ AS_HD void as_kd_ropes_trace(const as_kd_node_t *AS_RESTRICT nodes, const uint32
     if (!as_kd_clip_scene(r, box, &t, &tend)) return;
     const float o[3] = {r->ox, r->oy, r->oz}, d[3] = {r->dx, r->dy, r->dz}, inv[3] = {r->ix, r->iy, r->iz};
     float p[3] = {AS_FMAF(t, d[0], o[0]), AS_FMAF(t, d[1], o[1]), AS_FMAF(t, d[2], o[2])};
-    int32_t node = 0;
+    int32_t node = 0, exit_axis = -1;
     uint64_t steps = 0;
     const uint64_t max_steps = 2 * (uint64_t)leaf_count + 8;
     for (;;) {
-        as_kd_node_t n = as_kd_load_node(nodes + node);
-        while (!as_kd_is_leaf(n.word1)) {
-            if (ctr) ctr->node_visits++;
-            const int axis = (int)(n.word1 & 3u);
-            const float split = as_uint_as_float(n.word0);
-            const int up = p[axis] > split || (p[axis] == split && d[axis] > 0.0f);
-            node = up ? (int32_t)(n.word1 >> 2) : node + 1;
-            n = as_kd_load_node(nodes + node);
+        uint32_t ties = 0;
+        const int32_t leaf_node = as_kd_ropes_descend(nodes, node, p, d, exit_axis, -1, &ties, ctr);
+        if (ties) {
+            /* The entry point lies on split planes (other than the face just
+             * crossed): test every leaf around it, on either side of each
+             * such plane. A triangle lying in one of those planes may be on
+             * the side the ray does not enter, and the ray can hit it exactly
+             * at this point (an origin on a surface, a path through an edge).
+             * Rare (exact ties only), at most eight leaves. */
+            int32_t seen[8];
+            int nseen = 0;
+            for (int combo = 0; combo < 8; ++combo) {
+                uint32_t unused = 0;
+                const int32_t l = as_kd_ropes_descend(nodes, node, p, d, exit_axis, combo, &unused, ctr);
+                int dup = l == leaf_node;
+                for (int k = 0; k < nseen; ++k) dup |= seen[k] == l;
+                if (dup) continue;
+                seen[nseen++] = l;
+                if (as_kd_leaf(r, prim, tris, as_kd_load_node(nodes + l).word0, any_hit, hit, ctr)) return;
+            }
         }
+        const as_kd_node_t n = as_kd_load_node(nodes + leaf_node);
         if (as_kd_leaf(r, prim, tris, n.word0, any_hit, hit, ctr)) return;
         const uint32_t leaf = n.word1 >> 2;
         const as_kd_leaf_box_t *lb = leaf_boxes + leaf;
         /* Exit face: the far side on each axis; an axis the ray is parallel
          * to gives +inf or NaN, which never wins the comparison. */
-        int exit_axis = -1;
+        exit_axis = -1;
         float texit = as_inf(), face = 0.0f;
         for (int a = 0; a < 3; ++a) {
             const float f = d[a] >= 0.0f ? lb->hi[a] : lb->lo[a];
