@@ -429,6 +429,31 @@ static void depth_cap_and_split_budget_are_respected(void)
     as_mesh_release(m);
 }
 
+static void a_single_triangle_and_an_all_degenerate_mesh_build_and_trace(void)
+{
+    const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const uint32_t one[3] = {0, 1, 2}, degenerate[6] = {0, 0, 1, 0, 1, 1};
+    as_mesh_t *m1 = as_mesh_create(3, p, 1, one), *m2 = as_mesh_create(3, p, 2, degenerate);
+    CHECK(m1 && m2);
+    for (int l = 0; l < 2; ++l) {
+        as_build_args_t a = kd_args(l ? AS_LAYOUT_KD_ROPES : AS_LAYOUT_KD_STANDARD);
+        as_structure_t *s1 = as_structure_build(m1, &a), *s2 = as_structure_build(m2, &a);
+        CHECK(s1 && s2);
+        if (!s1 || !s2) { as_structure_release(s1); as_structure_release(s2); continue; }
+        CHECK_EQ_INT(as_structure_validate(s1), AS_OK);
+        CHECK_EQ_INT(as_structure_validate(s2), AS_OK);
+        const as_ray_t ray = {{0.2f, 0.2f, -1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY};
+        const as_hit_t h1 = trace1(s1, &ray), h2 = trace1(s2, &ray);
+        CHECK_EQ_U64(h1.prim, 0);
+        CHECK(h1.t == 1.0f);
+        CHECK_EQ_U64(h2.prim, AS_NO_HIT);
+        as_structure_release(s1);
+        as_structure_release(s2);
+    }
+    as_mesh_release(m1);
+    as_mesh_release(m2);
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2) { fprintf(stderr, "usage: %s midcut|sah\n", argv[0]); return 2; }
@@ -445,6 +470,7 @@ int main(int argc, char **argv)
     RUN_TEST(conversion_keeps_the_tree_and_round_trips_byte_for_byte);
     RUN_TEST(validation_rejects_damaged_trees_and_ropes);
     RUN_TEST(depth_cap_and_split_budget_are_respected);
+    RUN_TEST(a_single_triangle_and_an_all_degenerate_mesh_build_and_trace);
     rmdir(tmpdir);
     TEST_EXIT();
 }
