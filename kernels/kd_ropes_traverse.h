@@ -11,9 +11,15 @@
  * crosses the face. Points on a split plane go to the side the ray moves
  * towards (a ray lying in the plane: below), and when the entry point lies
  * exactly on split planes the leaves on their other sides are tested too
- * (as_kd_ropes_descend). For rays lying in a split plane: the builder references
- * every triangle that touches a split plane on both sides (closed boxes), so
- * either side holds whatever such a ray can hit.
+ * (as_kd_ropes_descend): a triangle may touch the point from a leaf the ray
+ * does not enter.
+ *
+ * A ray lying exactly in a leaf face that is a split plane (direction
+ * component 0, origin on the plane: axis-parallel rays from a vertex) can
+ * hit triangles that touch the plane from either side, and a stackless walk
+ * follows only one side. Such a ray is traced by the KD-standard traversal
+ * instead (the rope layout holds every section it reads), which visits both;
+ * every other ray never touches a stack.
  *
  * Hits are accepted as in kd_traverse.h: the closest so far is kept, and the
  * walk stops once the next leaf starts beyond it (widened). */
@@ -95,6 +101,14 @@ AS_HD void as_kd_ropes_trace(const as_kd_node_t *AS_RESTRICT nodes, const uint32
         if (as_kd_leaf(r, prim, tris, n.word0, any_hit, hit, ctr)) return;
         const uint32_t leaf = n.word1 >> 2;
         const as_kd_leaf_box_t *lb = leaf_boxes + leaf;
+        for (int a = 0; a < 3; ++a) {
+            if (d[a] != 0.0f) continue;
+            if ((o[a] == lb->lo[a] && ropes[leaf].rope[2 * a] >= 0) ||
+                (o[a] == lb->hi[a] && ropes[leaf].rope[2 * a + 1] >= 0)) {
+                as_kd_trace(nodes, prim, tris, box, r, any_hit, hit, ctr);
+                return;
+            }
+        }
         /* Exit face: the far side on each axis; an axis the ray is parallel
          * to gives +inf or NaN, which never wins the comparison. */
         exit_axis = -1;

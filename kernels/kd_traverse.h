@@ -1,5 +1,7 @@
 /* KD-standard traversal (Wald's thesis, Havran's TA_B): a stack of (node,
- * tfar) entries, 8-byte nodes, written once for the CPU and the GPU.
+ * tnear, tfar) entries, 8-byte nodes, written once for the CPU and the GPU.
+ * The entry keeps its own tnear (rather than the previous tfar) because a
+ * ray lying in a split plane visits both children over the same interval.
  *
  * Hit acceptance. A triangle that crosses a split plane is referenced by
  * leaves on both sides, so a leaf may report a hit that lies beyond the leaf.
@@ -84,14 +86,23 @@ AS_HD void as_kd_trace(const as_kd_node_t *AS_RESTRICT nodes, const uint32_t *AS
     as_hit_rec_miss(hit);
     float tnear, tfar;
     if (!as_kd_clip_scene(r, box, &tnear, &tfar)) return;
-    struct { uint32_t node; float tfar; } stack[AS_KD_MAX_DEPTH + 1];
+    struct { uint32_t node; float tnear, tfar; } stack[AS_KD_MAX_DEPTH + 1];
     int sp = 0;
     uint32_t node = 0;
     const float o[3] = {r->ox, r->oy, r->oz}, d[3] = {r->dx, r->dy, r->dz}, inv[3] = {r->ix, r->iy, r->iz};
     for (;;) {
-        /* The stack holds nodes in increasing distance: once the next one
-         * starts beyond the closest hit (or tmax), nothing can be nearer. */
-        if (tnear > as_kd_widen(AS_MINF(hit->t, r->tmax))) return;
+        /* A node that starts beyond the closest hit (or tmax) holds nothing
+         * nearer. The stack is not quite in increasing tnear (a ray lying in
+         * a split plane pushes a child with the current tnear), so the
+         * others are still looked at: popping is cheap. */
+        if (tnear > as_kd_widen(AS_MINF(hit->t, r->tmax))) {
+            if (sp == 0) return;
+            --sp;
+            node = stack[sp].node;
+            tnear = stack[sp].tnear;
+            tfar = stack[sp].tfar;
+            continue;
+        }
         as_kd_node_t n = as_kd_load_node(nodes + node);
         while (!as_kd_is_leaf(n.word1)) {
             if (ctr) ctr->node_visits++;
@@ -103,6 +114,7 @@ AS_HD void as_kd_trace(const as_kd_node_t *AS_RESTRICT nodes, const uint32_t *AS
                  * the ray lies in the plane (as_ray_prepare made -0 +0). */
                 if (o[axis] == split) {
                     stack[sp].node = above;
+                    stack[sp].tnear = tnear;
                     stack[sp].tfar = tfar;
                     ++sp;
                     node = below;
@@ -121,6 +133,7 @@ AS_HD void as_kd_trace(const as_kd_node_t *AS_RESTRICT nodes, const uint32_t *AS
                 } else {
                     const float ts = AS_MINF(AS_MAXF(tsplit, tnear), tfar);
                     stack[sp].node = second;
+                    stack[sp].tnear = ts;
                     stack[sp].tfar = tfar;
                     ++sp;
                     tfar = ts;
@@ -133,7 +146,7 @@ AS_HD void as_kd_trace(const as_kd_node_t *AS_RESTRICT nodes, const uint32_t *AS
         if (sp == 0) return;
         --sp;
         node = stack[sp].node;
-        tnear = tfar;
+        tnear = stack[sp].tnear;
         tfar = stack[sp].tfar;
     }
 }

@@ -4,9 +4,9 @@
  * Candidates are the bounds of every reference's clipped box (kd_build.c
  * clips triangles to the node box, so these are the "perfect" planes). Each
  * candidate plane is swept with three event kinds: end, planar, start.
- * Triangles lying in the plane are tried on either side and put where the
- * cost is lower (section 4.3 of the paper); with the closed-box rule of
- * kd_build.c a triangle touching the plane counts on both sides. The cost is
+ * A triangle counts below when it starts below the plane, above when it
+ * ends above it; triangles lying in the plane are tried on either side and
+ * put where the cost is lower (section 4.3 of the paper). The cost is
  * lambda (C_t + C_i (A_L N_L + A_R N_R) / A) with lambda = 0.8 when a side is
  * empty (the empty-space bonus); a node becomes a leaf when no plane costs
  * less than C_i N.
@@ -125,7 +125,7 @@ static int sah_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box
                 lbox[axis + 3] = pos;
                 rbox[axis] = pos;
                 const double al = half_area(lbox) / area, ar = half_area(rbox) / area;
-                const uint32_t nl0 = s_lt + s_eq + p_lt, nr0 = (np_total - e_lt) + (p_total - p_lt - p_eq);
+                const uint32_t nl0 = s_lt + p_lt, nr0 = (np_total - e_lt - e_eq) + (p_total - p_lt - p_eq);
                 for (int side = 1; side >= 0; --side) {
                     const uint32_t nl = nl0 + (side ? p_eq : 0), nr = nr0 + (side ? 0 : p_eq);
                     const double lambda = (nl == 0 || nr == 0) ? 0.8 : 1.0;
