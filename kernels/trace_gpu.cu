@@ -3,6 +3,8 @@
 // and times launches.
 #include "bvh2_traverse.h"
 #include "bvh2_own_traverse.h"
+#include "kd_traverse.h"
+#include "kd_ropes_traverse.h"
 #include "bih_traverse.h"
 #include "grid_traverse.h"
 #include "octree_traverse.h"
@@ -49,6 +51,31 @@ struct bvh2_own_traversal {
     __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
     {
         as_bvh2o_trace(nodes, tris, r, any_hit, h, c);
+    }
+};
+
+struct kd_traversal {
+    const as_kd_node_t *nodes;
+    const uint32_t *prims;
+    const as_tri4_t *tris;
+    float box[6];
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_kd_trace(nodes, prims, tris, box, r, any_hit, h, c);
+    }
+};
+
+struct kd_ropes_traversal {
+    const as_kd_node_t *nodes;
+    const uint32_t *prims;
+    const as_tri4_t *tris;
+    const as_kd_ropes_t *ropes;
+    const as_kd_leaf_box_t *leaf_boxes;
+    uint32_t leaf_count;
+    float box[6];
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_kd_ropes_trace(nodes, prims, tris, ropes, leaf_boxes, leaf_count, box, r, any_hit, h, c);
     }
 };
 
@@ -413,6 +440,20 @@ extern "C" as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, 
     }
     case AS_LAYOUT_BVH2_OWN_BOUNDS: {
         const bvh2_own_traversal t = {(const as_bvh2o_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    case AS_LAYOUT_KD_STANDARD: {
+        kd_traversal t = {(const as_kd_node_t *)g->device[0], (const uint32_t *)g->device[1],
+                          (const as_tri4_t *)g->device[2], {0, 0, 0, 0, 0, 0}};
+        for (int k = 0; k < 3; ++k) { t.box[k] = bounds_lo[k]; t.box[3 + k] = bounds_hi[k]; }
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    case AS_LAYOUT_KD_ROPES: {
+        kd_ropes_traversal t = {(const as_kd_node_t *)g->device[0], (const uint32_t *)g->device[1],
+                                (const as_tri4_t *)g->device[2], (const as_kd_ropes_t *)g->device[3],
+                                (const as_kd_leaf_box_t *)g->device[4],
+                                (uint32_t)(g->bytes[3] / sizeof(as_kd_ropes_t)), {0, 0, 0, 0, 0, 0}};
+        for (int k = 0; k < 3; ++k) { t.box[k] = bounds_lo[k]; t.box[3 + k] = bounds_hi[k]; }
         return launch_traversal(t, g, rays, count, hits, launch, timing);
     }
     case AS_LAYOUT_BIH: {

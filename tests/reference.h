@@ -39,6 +39,7 @@ static inline int ref_scene_init(ref_scene *s, const as_mesh_t *mesh)
     const float *p = as_mesh_positions(mesh);
     const uint32_t *ix = as_mesh_indices(mesh);
     s->tri_count = info.triangle_count;
+    s->diag = 0.0;
     s->v = malloc(sizeof(double) * 9 * (size_t)s->tri_count);
     s->skip = calloc(s->tri_count ? s->tri_count : 1, 1);
     if (!s->v || !s->skip) return 0;

@@ -94,6 +94,8 @@ static const as_builder_entry_t builders[] = {
     {AS_STRUCT_BVH, AS_BUILDER_BVH_MIDCUT, AS_LAYOUT_BVH2_CHILD_BOUNDS, "midcut", as_bvh_build_midcut},
     {AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_SWEEP, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sweep", as_bvh_build_sweep},
     {AS_STRUCT_BVH, AS_BUILDER_BVH_SBVH, AS_LAYOUT_BVH2_CHILD_BOUNDS, "sbvh", as_bvh_build_sbvh},
+    {AS_STRUCT_KD, AS_BUILDER_KD_SAH, AS_LAYOUT_KD_STANDARD, "sah", as_kd_build_sah},
+    {AS_STRUCT_KD, AS_BUILDER_KD_MIDCUT, AS_LAYOUT_KD_STANDARD, "midcut", as_kd_build_midcut},
     {AS_STRUCT_BIH, AS_BUILDER_BIH, AS_LAYOUT_BIH, "bih", as_bih_build},
     {AS_STRUCT_OCTREE, AS_BUILDER_OCTREE, AS_LAYOUT_OCTREE, "octree", as_octree_build},
     {AS_STRUCT_GRID, AS_BUILDER_GRID, AS_LAYOUT_GRID, "grid", as_grid_build},
@@ -204,6 +206,8 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
 static const as_layout_ops_t *const layouts[] = {
     &as_layout_bvh2_child_bounds,
     &as_layout_bvh2_own_bounds,
+    &as_layout_kd_standard,
+    &as_layout_kd_ropes,
     &as_layout_bih,
     &as_layout_octree,
     &as_layout_grid,

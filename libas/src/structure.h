@@ -155,6 +155,17 @@ double as_bih_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
 double as_octree_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
 double as_grid_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
 
+extern const as_layout_ops_t as_layout_kd_standard;
+extern const as_layout_ops_t as_layout_kd_ropes;
+as_error_t as_kd_build_midcut(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s);
+/* SAH cost of a KD tree from its stored sections (kd_layout_ops.c). */
+double as_kd_sah_cost(const as_structure_t *s);
+as_error_t as_kd_validate(const as_structure_t *s, const char *name);
+as_error_t as_kd_ropes_validate(const as_structure_t *s, const char *name);
+/* Adds KDRP and KDLB to a KD-standard structure and makes it kd-ropes. */
+as_error_t as_kd_add_ropes(as_structure_t *s);
+
 /* The CPU back end: a layout's trace_cpu on every core. */
 as_error_t as_trace_cpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                         const as_trace_args_t *args, as_trace_timing_t *timing);

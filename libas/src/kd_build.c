@@ -1,0 +1,436 @@
+/* The KD-tree build driver shared by the mid-cut and SAH builders.
+ *
+ * Perfect splits: a reference's box is the box of the part of its triangle
+ * inside the node, found by clipping the triangle polygon against the child
+ * box in double precision and rounding the result outwards (Havran's "split
+ * clipping", as Wald & Havran 2006 use it), so a box never loses a point of
+ * its triangle.
+ *
+ * Sides (Wald & Havran's rule): a triangle goes below when part of it lies
+ * below the plane and above when part lies above, so one that only touches
+ * the plane from one side stays on that side; a triangle lying in the plane
+ * goes to the side the builder chose by cost. (Sending touching triangles to
+ * both sides would let them follow into every cut-off empty cell: on the
+ * bunny it costs 30% of SAH.) Every triangle is then in some leaf whose
+ * closed box holds any given point of it, which is what both traversals
+ * rely on; a ray lying in a split plane is the traversals' business.
+ *
+ * Termination, each rule enough to stop: the builder says leaf (leaf size,
+ * SAH cost); the depth cap (never deeper than the KD-standard stack); no
+ * progress (both children would hold every reference); the reference budget:
+ * a node's subtree may hold at most its share of split_budget x triangles,
+ * shares handed to children in proportion to their counts, which bounds the
+ * total and is independent of the order threads run in.
+ *
+ * Determinism: a node's split and children depend only on its references, in
+ * an order fixed by the parent; leaves sort their indices; the output is one
+ * depth-first walk after the build. The bytes are the same for any thread
+ * count. */
+#include "kd_build.h"
+
+#include <float.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PARALLEL_MIN_REFS 4096
+
+typedef struct kd_tmp {
+    struct kd_tmp *child[2];   /* NULL for a leaf */
+    int axis;
+    float pos;
+    uint32_t *ids;             /* leaf: sorted source indices */
+    uint32_t count;
+} kd_tmp;
+
+typedef struct kd_run {
+    const kd_ctx *c;
+    atomic_int live_threads;
+    int max_threads;
+    atomic_int cancelled;
+    atomic_int oom;
+    pthread_mutex_t lock;
+    double done, next_report;
+} kd_run;
+
+static void report(kd_run *run, double weight)
+{
+    const as_build_args_t *a = run->c->args;
+    pthread_mutex_lock(&run->lock);
+    run->done += weight;
+    if (a->progress && run->done >= run->next_report) {
+        run->next_report = run->done + 0.01;
+        if (!a->progress(a->progress_user, run->done > 1.0 ? 1.0 : run->done)) atomic_store(&run->cancelled, 1);
+    }
+    pthread_mutex_unlock(&run->lock);
+}
+
+static int cmp_u32(const void *a, const void *b)
+{
+    const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static kd_tmp *new_tmp(kd_run *run)
+{
+    kd_tmp *t = calloc(1, sizeof *t);
+    if (!t) atomic_store(&run->oom, 1);
+    return t;
+}
+
+static kd_tmp *make_leaf(kd_run *run, kd_ref *refs, uint32_t n, double weight)
+{
+    kd_tmp *t = new_tmp(run);
+    if (t && n) {
+        t->ids = malloc(sizeof(uint32_t) * n);
+        if (!t->ids) {
+            atomic_store(&run->oom, 1);
+        } else {
+            for (uint32_t i = 0; i < n; ++i) t->ids[i] = refs[i].id;
+            qsort(t->ids, n, sizeof(uint32_t), cmp_u32);
+            t->count = n;
+        }
+    }
+    free(refs);
+    report(run, weight);
+    return t;
+}
+
+static float round_down(double x)
+{
+    float f = (float)x;
+    if ((double)f > x) f = nextafterf(f, -INFINITY);
+    return f;
+}
+
+static float round_up(double x)
+{
+    float f = (float)x;
+    if ((double)f < x) f = nextafterf(f, INFINITY);
+    return f;
+}
+
+/* The box of triangle `id` clipped to `box`, intersected with `old` (which
+ * already holds the part inside the parent). */
+static void clip_ref(const as_mesh_t *m, const kd_ref *old, const float box[6], kd_ref *out)
+{
+    double poly[2][12][3];
+    int cnt = 3, cur = 0;
+    const uint32_t *ix = m->indices + 3 * (size_t)old->id;
+    for (int v = 0; v < 3; ++v)
+        for (int k = 0; k < 3; ++k) poly[0][v][k] = m->positions[3 * (size_t)ix[v] + k];
+    for (int plane = 0; plane < 6 && cnt > 0; ++plane) {
+        const int axis = plane % 3, upper = plane >= 3;
+        const double bound = box[plane];
+        int outc = 0;
+        for (int i = 0; i < cnt; ++i) {
+            const double *p = poly[cur][i], *q = poly[cur][(i + 1) % cnt];
+            const double dp = upper ? bound - p[axis] : p[axis] - bound;
+            const double dq = upper ? bound - q[axis] : q[axis] - bound;
+            if (dp >= 0) { memcpy(poly[1 - cur][outc++], p, sizeof(double) * 3); }
+            if ((dp > 0 && dq < 0) || (dp < 0 && dq > 0)) {
+                const double s = dp / (dp - dq);
+                double *r = poly[1 - cur][outc++];
+                for (int k = 0; k < 3; ++k) r[k] = p[k] + s * (q[k] - p[k]);
+                r[axis] = bound;
+            }
+        }
+        cnt = outc;
+        cur = 1 - cur;
+    }
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = old->lo[k] > box[k] ? old->lo[k] : box[k];
+        hi[k] = old->hi[k] < box[k + 3] ? old->hi[k] : box[k + 3];
+    }
+    if (cnt > 0) {
+        double dlo[3] = {INFINITY, INFINITY, INFINITY}, dhi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (int i = 0; i < cnt; ++i)
+            for (int k = 0; k < 3; ++k) {
+                if (poly[cur][i][k] < dlo[k]) dlo[k] = poly[cur][i][k];
+                if (poly[cur][i][k] > dhi[k]) dhi[k] = poly[cur][i][k];
+            }
+        for (int k = 0; k < 3; ++k) {
+            const float fl = round_down(dlo[k]), fh = round_up(dhi[k]);
+            if (fl > lo[k] && fl <= hi[k]) lo[k] = fl;
+            if (fh < hi[k] && fh >= lo[k]) hi[k] = fh;
+        }
+    }
+    memcpy(out->lo, lo, sizeof lo);
+    memcpy(out->hi, hi, sizeof hi);
+    out->id = old->id;
+}
+
+typedef struct kd_task {
+    kd_run *run;
+    kd_ref *refs;
+    uint32_t n;
+    float box[6];
+    uint32_t depth;
+    double share, weight;
+    kd_tmp *result;
+} kd_task;
+
+static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, const float box[6], uint32_t depth, double share,
+                          double weight);
+
+static void *build_thread(void *arg)
+{
+    kd_task *t = arg;
+    t->result = build_node(t->run, t->refs, t->n, t->box, t->depth, t->share, t->weight);
+    atomic_fetch_sub(&t->run->live_threads, 1);
+    return NULL;
+}
+
+static int goes_left(const kd_ref *r, const kd_split *s)
+{
+    const float lo = r->lo[s->axis], hi = r->hi[s->axis];
+    if (lo == hi && lo == s->pos) return s->planar_left;
+    return lo < s->pos;
+}
+
+static int goes_right(const kd_ref *r, const kd_split *s)
+{
+    const float lo = r->lo[s->axis], hi = r->hi[s->axis];
+    if (lo == hi && lo == s->pos) return !s->planar_left;
+    return hi > s->pos;
+}
+
+static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, const float box[6], uint32_t depth, double share,
+                          double weight)
+{
+    const kd_ctx *c = run->c;
+    if (atomic_load(&run->cancelled) || atomic_load(&run->oom) || n == 0 || depth >= c->max_depth)
+        return make_leaf(run, refs, n, weight);
+    kd_split sp;
+    if (!c->choose(c, refs, n, box, depth, &sp) || !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3]))
+        return make_leaf(run, refs, n, weight);
+    uint32_t nl = 0, nr = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        nl += (uint32_t)goes_left(&refs[i], &sp);
+        nr += (uint32_t)goes_right(&refs[i], &sp);
+    }
+    if ((nl == n && nr == n) || (double)nl + (double)nr > share) return make_leaf(run, refs, n, weight);
+    kd_ref *lr = malloc(sizeof(kd_ref) * (nl ? nl : 1)), *rr = malloc(sizeof(kd_ref) * (nr ? nr : 1));
+    kd_tmp *t = new_tmp(run);
+    if (!lr || !rr || !t) {
+        free(lr);
+        free(rr);
+        free(t);
+        atomic_store(&run->oom, 1);
+        return make_leaf(run, refs, n, weight);
+    }
+    float lbox[6], rbox[6];
+    memcpy(lbox, box, sizeof lbox);
+    memcpy(rbox, box, sizeof rbox);
+    lbox[sp.axis + 3] = sp.pos;
+    rbox[sp.axis] = sp.pos;
+    uint32_t il = 0, ir = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        const kd_ref *r = &refs[i];
+        if (goes_left(r, &sp)) {
+            if (r->hi[sp.axis] > sp.pos) clip_ref(c->mesh, r, lbox, &lr[il]);
+            else lr[il] = *r;
+            ++il;
+        }
+        if (goes_right(r, &sp)) {
+            if (r->lo[sp.axis] < sp.pos) clip_ref(c->mesh, r, rbox, &rr[ir]);
+            else rr[ir] = *r;
+            ++ir;
+        }
+    }
+    free(refs);
+    t->axis = sp.axis;
+    t->pos = sp.pos;
+    const double fl = (double)nl / ((double)nl + (double)nr);
+    kd_task task = {run, lr, nl, {0}, depth + 1, share * fl, weight * fl, NULL};
+    memcpy(task.box, lbox, sizeof lbox);
+    int spawned = 0;
+    pthread_t tid;
+    if (nl >= PARALLEL_MIN_REFS && nr >= PARALLEL_MIN_REFS) {
+        if (atomic_fetch_add(&run->live_threads, 1) < run->max_threads)
+            spawned = pthread_create(&tid, NULL, build_thread, &task) == 0;
+        if (!spawned) atomic_fetch_sub(&run->live_threads, 1);
+    }
+    if (!spawned) task.result = build_node(run, lr, nl, lbox, depth + 1, share * fl, weight * fl);
+    t->child[1] = build_node(run, rr, nr, rbox, depth + 1, share * (1.0 - fl), weight * (1.0 - fl));
+    if (spawned) pthread_join(tid, NULL);
+    t->child[0] = task.result;
+    if (!t->child[0] || !t->child[1]) atomic_store(&run->oom, 1);
+    return t;
+}
+
+static void free_tmp(kd_tmp *t)
+{
+    if (!t) return;
+    free_tmp(t->child[0]);
+    free_tmp(t->child[1]);
+    free(t->ids);
+    free(t);
+}
+
+typedef struct kd_counts {
+    uint64_t nodes, inner, leaves, empty, refs;
+    uint32_t max_depth;
+} kd_counts;
+
+static void count_tmp(const kd_tmp *t, uint32_t depth, kd_counts *k)
+{
+    k->nodes++;
+    if (t->child[0]) {
+        k->inner++;
+        count_tmp(t->child[0], depth + 1, k);
+        count_tmp(t->child[1], depth + 1, k);
+        return;
+    }
+    k->leaves++;
+    k->refs += t->count;
+    if (t->count == 0) k->empty++;
+    if (depth > k->max_depth) k->max_depth = depth;
+}
+
+typedef struct kd_emit {
+    as_kd_node_t *nodes;
+    uint32_t *prim;
+    uint64_t node_next, prim_next;
+    uint32_t leaf_next;
+} kd_emit;
+
+static void emit(const kd_tmp *t, kd_emit *e)
+{
+    const uint64_t me = e->node_next++;
+    if (!t->child[0]) {
+        e->nodes[me].word0 = (uint32_t)e->prim_next;
+        e->nodes[me].word1 = (e->leaf_next++ << 2) | AS_KD_LEAF_TAG;
+        e->prim[e->prim_next++] = t->count;
+        memcpy(e->prim + e->prim_next, t->ids, sizeof(uint32_t) * t->count);
+        e->prim_next += t->count;
+        return;
+    }
+    emit(t->child[0], e);
+    e->nodes[me].word0 = as_float_as_uint(t->pos);
+    e->nodes[me].word1 = ((uint32_t)e->node_next << 2) | (uint32_t)t->axis;
+    emit(t->child[1], e);
+}
+
+as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, uint32_t builder, kd_choose_fn choose,
+                    as_structure_t *s)
+{
+    const double t_start = as_now_ms();
+    if (args->layout != AS_LAYOUT_KD_STANDARD && args->layout != AS_LAYOUT_KD_ROPES)
+        return as_set_error(AS_ERROR_UNSUPPORTED, "a KD tree has no layout 0x%04x (kd-standard or kd-ropes)",
+                            (unsigned)args->layout);
+    if (args->max_leaf_size < 1) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "max leaf size must be at least 1");
+    if (!(args->cost_traversal >= 0.0f) || !(args->cost_intersection > 0.0f) || !isfinite(args->cost_traversal) ||
+        !isfinite(args->cost_intersection))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "SAH costs must be finite, traversal >= 0, intersection > 0");
+    if (!(args->split_budget >= 1.0f))
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "KD split budget %g must be at least 1", (double)args->split_budget);
+
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < mesh->triangle_count; ++i) n += !as_mesh_triangle_is_degenerate(mesh, i);
+    kd_ref *refs = malloc(sizeof(kd_ref) * (n ? n : 1));
+    as_tri4_t *tris = as_aligned_alloc(sizeof(as_tri4_t) * (mesh->triangle_count ? mesh->triangle_count : 1), "KD TRIS");
+    if (!refs || !tris) {
+        free(refs);
+        free(tris);
+        return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory building a KD tree");
+    }
+    float box[6] = {FLT_MAX, FLT_MAX, FLT_MAX, -FLT_MAX, -FLT_MAX, -FLT_MAX};
+    uint32_t k = 0;
+    for (uint32_t i = 0; i < mesh->triangle_count; ++i) {
+        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
+        const float *v[3] = {mesh->positions + 3 * (size_t)ix[0], mesh->positions + 3 * (size_t)ix[1],
+                             mesh->positions + 3 * (size_t)ix[2]};
+        tris[i].v0 = (as_f4_t){v[0][0], v[0][1], v[0][2], as_uint_as_float(i)};
+        tris[i].v1 = (as_f4_t){v[1][0], v[1][1], v[1][2], 0.0f};
+        tris[i].v2 = (as_f4_t){v[2][0], v[2][1], v[2][2], 0.0f};
+        if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
+        kd_ref *r = &refs[k++];
+        r->id = i;
+        for (int a = 0; a < 3; ++a) {
+            r->lo[a] = fminf(v[0][a], fminf(v[1][a], v[2][a]));
+            r->hi[a] = fmaxf(v[0][a], fmaxf(v[1][a], v[2][a]));
+            if (r->lo[a] < box[a]) box[a] = r->lo[a];
+            if (r->hi[a] > box[a + 3]) box[a + 3] = r->hi[a];
+        }
+    }
+    if (n == 0) memset(box, 0, sizeof box);
+
+    kd_ctx ctx = {args, mesh, choose, 0, builder};
+    /* The default depth cap grows with log N (8 + 1.3 log2 N, the usual
+     * rule), never beyond the traversal stack. */
+    uint32_t cap = (uint32_t)(8.0 + 1.3 * log2((double)(n > 1 ? n : 1)));
+    if (args->max_depth) cap = args->max_depth;
+    if (cap > AS_KD_MAX_DEPTH) cap = AS_KD_MAX_DEPTH;
+    ctx.max_depth = cap;
+
+    kd_run run;
+    memset(&run, 0, sizeof run);
+    run.c = &ctx;
+    run.max_threads = (int)as_thread_count(args->thread_count) - 1;
+    pthread_mutex_init(&run.lock, NULL);
+    kd_tmp *root = build_node(&run, refs, n, box, 0, (double)args->split_budget * (double)n, 1.0);
+    pthread_mutex_destroy(&run.lock);
+    if (atomic_load(&run.cancelled) || atomic_load(&run.oom) || !root) {
+        free_tmp(root);
+        free(tris);
+        if (atomic_load(&run.cancelled)) return as_set_error(AS_ERROR_CANCELLED, "KD build cancelled by the progress callback");
+        return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory building a KD tree");
+    }
+    kd_counts kc;
+    memset(&kc, 0, sizeof kc);
+    count_tmp(root, 0, &kc);
+    if (kc.nodes >= (1u << 30) || kc.leaves + kc.refs >= UINT32_MAX) {
+        free_tmp(root);
+        free(tris);
+        return as_set_error(AS_ERROR_UNSUPPORTED, "KD tree too large for 32-bit indices");
+    }
+    as_kd_node_t *nodes = as_aligned_alloc(sizeof(as_kd_node_t) * kc.nodes, "KD nodes");
+    uint32_t *prim = as_aligned_alloc(sizeof(uint32_t) * (kc.leaves + kc.refs), "KD PRIM");
+    if (!nodes || !prim) {
+        free(nodes);
+        free(prim);
+        free(tris);
+        free_tmp(root);
+        return as_get_error();
+    }
+    kd_emit e = {nodes, prim, 0, 0, 0};
+    emit(root, &e);
+    free_tmp(root);
+
+    memset(&s->meta, 0, sizeof s->meta);
+    snprintf(s->meta.writer, sizeof s->meta.writer, "libas");
+    s->meta.writer_version = AS_VERSION_NUMBER;
+    s->meta.structure_kind = AS_STRUCT_KD;
+    s->meta.layout = AS_LAYOUT_KD_STANDARD;
+    s->meta.layout_version = AS_KD_LAYOUT_VERSION;
+    s->meta.builder = builder;
+    s->meta.max_leaf_size = args->max_leaf_size;
+    s->meta.cost_traversal = args->cost_traversal;
+    s->meta.cost_intersection = args->cost_intersection;
+    s->meta.triangle_count = mesh->triangle_count;
+    s->meta.source_hash = mesh->hash;
+    memcpy(s->meta.bounds_lo, box, sizeof s->meta.bounds_lo);
+    memcpy(s->meta.bounds_hi, box + 3, sizeof s->meta.bounds_hi);
+    s->meta.node_count = kc.inner;
+    s->meta.leaf_count = kc.leaves - kc.empty;
+    s->meta.empty_leaf_count = kc.empty;
+    s->meta.reference_count = kc.refs;
+    s->meta.max_depth = kc.max_depth;
+    s->meta.max_depth_limit = cap;
+    s->meta.split_budget = args->split_budget;
+    as_structure_add_section(s, ASF_TAG_KDN8, nodes, kc.nodes, sizeof(as_kd_node_t));
+    as_structure_add_section(s, ASF_TAG_PRIM, prim, kc.leaves + kc.refs, sizeof(uint32_t));
+    as_structure_add_section(s, ASF_TAG_TRIS, tris, mesh->triangle_count, sizeof(as_tri4_t));
+    s->meta.sah_cost = as_kd_sah_cost(s);
+    if (args->layout == AS_LAYOUT_KD_ROPES) {
+        const as_error_t err = as_kd_add_ropes(s);
+        if (err != AS_OK) return err;
+    }
+    s->build_ms = as_now_ms() - t_start;
+    return AS_OK;
+}

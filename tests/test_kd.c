@@ -1,0 +1,476 @@
+/* What the KD builders and layouts promise: byte-identical files whatever
+ * the thread count, cancellation, sane trees on degenerate inputs (copies of
+ * one triangle, a flat scene, quads lying on split planes), validation that
+ * rejects damaged trees and ropes, and conversion kd-standard <-> kd-ropes
+ * that keeps the tree bytes and round-trips to the same file.
+ *
+ *   test_kd BUILDER        (midcut | sah) */
+#include "reference.h"
+#include "test_util.h"
+#include "structure.h"
+#include "kd_layout.h"
+
+#include <math.h>
+#include <stdio.h>
+
+static char tmpdir[256];
+static as_builder_t builder;
+static const char *builder_name;
+
+static as_build_args_t kd_args(as_layout_t layout)
+{
+    as_build_args_t a;
+    as_build_args_default(&a);
+    a.structure = AS_STRUCT_KD;
+    a.builder = builder;
+    a.layout = layout;
+    return a;
+}
+
+static int read_file(const char *path, unsigned char **data, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return 0;
+    fseek(f, 0, SEEK_END);
+    *size = (size_t)ftell(f);
+    fseek(f, 0, SEEK_SET);
+    *data = malloc(*size ? *size : 1);
+    const int ok = fread(*data, 1, *size, f) == *size;
+    fclose(f);
+    return ok;
+}
+
+static int same_file(const char *a, const char *b)
+{
+    unsigned char *x = NULL, *y = NULL;
+    size_t nx = 0, ny = 0;
+    const int ok = read_file(a, &x, &nx) && read_file(b, &y, &ny) && nx == ny && memcmp(x, y, nx) == 0;
+    free(x);
+    free(y);
+    return ok;
+}
+
+static as_mesh_t *soup(uint64_t seed, uint32_t n, float size)
+{
+    uint64_t st = seed;
+    float *p = malloc(sizeof(float) * 9 * n);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
+    for (uint32_t t = 0; t < n; ++t) {
+        float c[3];
+        for (int k = 0; k < 3; ++k) c[k] = (float)ref_rand01(&st);
+        for (int v = 0; v < 3; ++v)
+            for (int k = 0; k < 3; ++k) p[9 * t + 3 * v + k] = c[k] + size * (float)(ref_rand01(&st) - 0.5);
+    }
+    for (uint32_t i = 0; i < 3 * n; ++i) ix[i] = i;
+    as_mesh_t *m = as_mesh_create(3 * n, p, n, ix);
+    free(p);
+    free(ix);
+    return m;
+}
+
+static void save(const as_structure_t *s, const char *path)
+{
+    CHECK(s != NULL);
+    if (s) CHECK_EQ_INT(as_structure_save(s, path, NULL), AS_OK);
+}
+
+static void build_is_byte_identical_for_1_2_3_threads(void)
+{
+    as_mesh_t *m = soup(7, 60000, 0.04f);
+    const as_layout_t layouts[2] = {AS_LAYOUT_KD_STANDARD, AS_LAYOUT_KD_ROPES};
+    for (int l = 0; l < 2; ++l) {
+        char first[512];
+        for (unsigned threads = 1; threads <= 3; ++threads) {
+            as_build_args_t a = kd_args(layouts[l]);
+            a.thread_count = threads;
+            as_structure_t *s = as_structure_build(m, &a);
+            char path[512];
+            snprintf(path, sizeof path, "%s/threads%u.asf", tmpdir, threads);
+            save(s, path);
+            as_structure_release(s);
+            if (threads == 1) { snprintf(first, sizeof first, "%s", path); continue; }
+            if (!same_file(first, path)) fprintf(stderr, "  %s: %u threads differ from 1\n", builder_name, threads);
+            CHECK(same_file(first, path));
+            unlink(path);
+        }
+        unlink(first);
+    }
+    as_mesh_release(m);
+}
+
+static bool cancel_at_half(void *user, double fraction)
+{
+    ++*(int *)user;
+    return fraction < 0.5;
+}
+
+static void progress_returning_false_cancels(void)
+{
+    as_mesh_t *m = soup(8, 20000, 0.05f);
+    as_build_args_t a = kd_args(AS_LAYOUT_KD_STANDARD);
+    int calls = 0;
+    a.progress = cancel_at_half;
+    a.progress_user = &calls;
+    as_clear_error();
+    as_structure_t *s = as_structure_build(m, &a);
+    CHECK(s == NULL);
+    CHECK_EQ_INT(as_get_error(), AS_ERROR_CANCELLED);
+    CHECK(calls > 1);
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
+static as_hit_t trace1(const as_structure_t *s, const as_ray_t *ray)
+{
+    as_hit_t h;
+    as_trace_args_t ta;
+    as_trace_args_default(&ta);
+    ta.device = AS_DEVICE_CPU;
+    CHECK_EQ_INT(as_trace(s, ray, 1, &h, &ta, NULL), AS_OK);
+    return h;
+}
+
+static void copies_of_one_triangle_stay_shallow_and_hit_the_lowest_index(void)
+{
+    const uint32_t copies = 10000;
+    float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * copies);
+    for (uint32_t i = 0; i < copies; ++i) { ix[3 * i] = 0; ix[3 * i + 1] = 1; ix[3 * i + 2] = 2; }
+    as_mesh_t *m = as_mesh_create(3, p, copies, ix);
+    free(ix);
+    for (int l = 0; l < 2; ++l) {
+        as_build_args_t a = kd_args(l ? AS_LAYOUT_KD_ROPES : AS_LAYOUT_KD_STANDARD);
+        as_structure_t *s = as_structure_build(m, &a);
+        CHECK(s != NULL);
+        if (!s) continue;
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+        as_structure_stats_t st;
+        CHECK_EQ_INT(as_structure_get_stats(s, &st), AS_OK);
+        fprintf(stderr, "  %s: 10000 copies: %llu inner nodes, %llu leaves, depth %u, %llu references\n", builder_name,
+                (unsigned long long)st.node_count, (unsigned long long)st.leaf_count, st.max_depth,
+                (unsigned long long)st.reference_count);
+        CHECK(st.max_depth <= AS_KD_MAX_DEPTH);
+        CHECK(st.node_count <= copies);
+        CHECK(st.reference_count <= (uint64_t)(4.0 * copies));
+        const as_ray_t down = {{0.25f, 0.25f, 1.0f}, 0.0f, {0.0f, 0.0f, -1.0f}, INFINITY};
+        const as_ray_t up = {{0.25f, 0.25f, -1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY};
+        const as_hit_t h = trace1(s, &down), h2 = trace1(s, &up);
+        CHECK_EQ_U64(h.prim, 0);
+        CHECK(h.t == 1.0f);
+        CHECK_EQ_U64(h2.prim, 0);
+        as_structure_release(s);
+    }
+    as_mesh_release(m);
+}
+
+/* Checks a mesh's structure against the reference on the given rays. */
+static void agree(const char *what, const as_mesh_t *m, const as_structure_t *s, const as_ray_t *rays, size_t n)
+{
+    ref_scene rs;
+    CHECK(ref_scene_init(&rs, m));
+    as_hit_t *hits = malloc(sizeof *hits * n);
+    as_trace_args_t ta;
+    as_trace_args_default(&ta);
+    ta.device = AS_DEVICE_CPU;
+    CHECK_EQ_INT(as_trace(s, rays, n, hits, &ta, NULL), AS_OK);
+    size_t bad = 0, nhit = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const ref_hit r = ref_trace(&rs, &rays[i]);
+        nhit += r.prim != AS_NO_HIT;
+        if (!ref_agrees(&rs, &rays[i], &r, &hits[i])) {
+            if (bad < 3)
+                fprintf(stderr, "  %s ray %zu: reference %u t %g, got %u t %g\n", what, i, r.prim, r.t, hits[i].prim,
+                        (double)hits[i].t);
+            ++bad;
+        }
+    }
+    fprintf(stderr, "  %s %s: %zu rays, %zu hit, %zu disagree\n", builder_name, what, n, nhit, bad);
+    CHECK(nhit > 0);
+    CHECK_EQ_U64(bad, 0);
+    free(hits);
+    ref_scene_free(&rs);
+}
+
+static void a_flat_scene_builds_and_is_hit_from_both_sides(void)
+{
+    /* A 20 x 20 grid of triangles in the plane z = 0.5: the scene box has
+     * zero thickness. */
+    const int g = 20;
+    float *p = malloc(sizeof(float) * 3 * (g + 1) * (g + 1));
+    uint32_t *ix = malloc(sizeof(uint32_t) * 6 * g * g), nt = 0;
+    for (int i = 0; i <= g; ++i)
+        for (int j = 0; j <= g; ++j) {
+            float *q = p + 3 * (i * (g + 1) + j);
+            q[0] = (float)i; q[1] = (float)j; q[2] = 0.5f;
+        }
+    for (int i = 0; i < g; ++i)
+        for (int j = 0; j < g; ++j) {
+            const uint32_t a = (uint32_t)(i * (g + 1) + j), b = a + 1, c = a + (uint32_t)g + 1, d = c + 1;
+            ix[3 * nt] = a; ix[3 * nt + 1] = c; ix[3 * nt + 2] = d; ++nt;
+            ix[3 * nt] = a; ix[3 * nt + 1] = d; ix[3 * nt + 2] = b; ++nt;
+        }
+    as_mesh_t *m = as_mesh_create((uint32_t)((g + 1) * (g + 1)), p, nt, ix);
+    free(p);
+    free(ix);
+    const size_t n = 4000;
+    as_ray_t *rays = malloc(sizeof *rays * n);
+    uint64_t st = 5;
+    for (size_t i = 0; i < n; ++i) {
+        as_ray_t *r = &rays[i];
+        const int from_below = i & 1, on_lattice = (i >> 1) & 1;
+        for (int k = 0; k < 2; ++k)
+            r->org[k] = on_lattice ? (float)(ref_rand_u64(&st) % (2 * g + 1)) * 0.5f : (float)(ref_rand01(&st) * g);
+        r->org[2] = from_below ? -1.0f : 2.0f;
+        r->dir[0] = (i % 8) < 4 ? 0.0f : (float)(ref_rand01(&st) - 0.5) * 0.2f;
+        r->dir[1] = (i % 8) < 4 ? 0.0f : (float)(ref_rand01(&st) - 0.5) * 0.2f;
+        r->dir[2] = from_below ? 1.0f : -1.0f;
+        r->tmin = 0.0f;
+        r->tmax = INFINITY;
+    }
+    for (int l = 0; l < 2; ++l) {
+        as_build_args_t a = kd_args(l ? AS_LAYOUT_KD_ROPES : AS_LAYOUT_KD_STANDARD);
+        as_structure_t *s = as_structure_build(m, &a);
+        CHECK(s != NULL);
+        if (!s) continue;
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+        agree(l ? "flat scene (ropes)" : "flat scene", m, s, rays, n);
+        as_structure_release(s);
+    }
+    free(rays);
+    as_mesh_release(m);
+}
+
+static void quads_on_split_planes_are_hit_by_crossing_rays(void)
+{
+    /* Axis-aligned unit quads on the planes x = 0..8, y = 0..8, z = 0..8
+     * (offset grids, so the mid-cut and SAH planes fall exactly on them),
+     * crossed by rays in every direction, some along the planes. */
+    const int n = 8;
+    float *p = malloc(sizeof(float) * 3 * 4 * 3 * (n + 1) * 4);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 6 * 3 * (n + 1) * 4);
+    uint32_t nv = 0, nt = 0;
+    for (int axis = 0; axis < 3; ++axis)
+        for (int k = 0; k <= n; ++k)
+            for (int cell = 0; cell < 4; ++cell) {
+                const float u0 = (float)(2 * (cell & 1) + 1), v0 = (float)(2 * (cell >> 1) + 2);
+                const float uv[4][2] = {{u0, v0}, {u0 + 1, v0}, {u0 + 1, v0 + 1}, {u0, v0 + 1}};
+                for (int c = 0; c < 4; ++c) {
+                    float *q = p + 3 * (nv + c);
+                    q[axis] = (float)k;
+                    q[(axis + 1) % 3] = uv[c][0];
+                    q[(axis + 2) % 3] = uv[c][1];
+                }
+                ix[3 * nt] = nv; ix[3 * nt + 1] = nv + 1; ix[3 * nt + 2] = nv + 2; ++nt;
+                ix[3 * nt] = nv; ix[3 * nt + 1] = nv + 2; ix[3 * nt + 2] = nv + 3; ++nt;
+                nv += 4;
+            }
+    as_mesh_t *m = as_mesh_create(nv, p, nt, ix);
+    free(p);
+    free(ix);
+    const size_t count = 20000;
+    as_ray_t *rays = malloc(sizeof *rays * count);
+    uint64_t st = 9;
+    for (size_t i = 0; i < count; ++i) {
+        as_ray_t *r = &rays[i];
+        for (int k = 0; k < 3; ++k) {
+            /* Origins on the half-integer lattice: on planes, edges, corners. */
+            r->org[k] = (float)(ref_rand_u64(&st) % 21) * 0.5f - 1.0f;
+            const int kind = (int)(ref_rand_u64(&st) % 4);
+            r->dir[k] = kind == 0 ? 0.0f : kind == 1 ? -0.0f : (float)(ref_rand01(&st) - 0.5);
+        }
+        if (r->dir[0] == 0 && r->dir[1] == 0 && r->dir[2] == 0) r->dir[i % 3] = 1.0f;
+        r->tmin = 0.0f;
+        r->tmax = INFINITY;
+    }
+    for (int l = 0; l < 2; ++l) {
+        as_build_args_t a = kd_args(l ? AS_LAYOUT_KD_ROPES : AS_LAYOUT_KD_STANDARD);
+        a.max_leaf_size = 1;
+        as_structure_t *s = as_structure_build(m, &a);
+        CHECK(s != NULL);
+        if (!s) continue;
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+        agree(l ? "quads on split planes (ropes)" : "quads on split planes", m, s, rays, count);
+        as_structure_release(s);
+    }
+    free(rays);
+    as_mesh_release(m);
+}
+
+static void conversion_keeps_the_tree_and_round_trips_byte_for_byte(void)
+{
+    as_mesh_t *m = soup(11, 5000, 0.05f);
+    as_build_args_t a = kd_args(AS_LAYOUT_KD_STANDARD);
+    as_structure_t *std = as_structure_build(m, &a);
+    a.layout = AS_LAYOUT_KD_ROPES;
+    as_structure_t *built_ropes = as_structure_build(m, &a);
+    CHECK(std && built_ropes);
+    if (!std || !built_ropes) { as_mesh_release(m); return; }
+    as_structure_t *ropes = as_structure_convert(std, AS_LAYOUT_KD_ROPES);
+    CHECK(ropes != NULL);
+    as_structure_t *back = ropes ? as_structure_convert(ropes, AS_LAYOUT_KD_STANDARD) : NULL;
+    CHECK(back != NULL);
+    char pa[512], pb[512], pc[512], pd[512];
+    snprintf(pa, sizeof pa, "%s/std.asf", tmpdir);
+    snprintf(pb, sizeof pb, "%s/ropes.asf", tmpdir);
+    snprintf(pc, sizeof pc, "%s/back.asf", tmpdir);
+    snprintf(pd, sizeof pd, "%s/built_ropes.asf", tmpdir);
+    save(std, pa);
+    save(ropes, pb);
+    save(back, pc);
+    save(built_ropes, pd);
+    CHECK(same_file(pa, pc));
+    CHECK(same_file(pb, pd));
+    /* Converting a loaded file works the same way. */
+    as_structure_t *loaded = as_structure_load(pb, NULL);
+    CHECK(loaded != NULL);
+    if (loaded) {
+        CHECK_EQ_INT(as_structure_validate(loaded), AS_OK);
+        as_structure_t *b2 = as_structure_convert(loaded, AS_LAYOUT_KD_STANDARD);
+        save(b2, pc);
+        CHECK(same_file(pa, pc));
+        as_structure_release(b2);
+    }
+    /* The tree bytes are shared. */
+    const as_section_t *n1 = as_structure_find(std, ASF_TAG_KDN8), *n2 = ropes ? as_structure_find(ropes, ASF_TAG_KDN8) : NULL;
+    CHECK(n1 && n2 && n1->bytes == n2->bytes && memcmp(n1->data, n2->data, n1->bytes) == 0);
+    as_structure_stats_t s1, s2;
+    CHECK_EQ_INT(as_structure_get_stats(std, &s1), AS_OK);
+    if (ropes) CHECK_EQ_INT(as_structure_get_stats(ropes, &s2), AS_OK);
+    CHECK(s1.sah_cost == s2.sah_cost && s1.sah_cost > 0);
+    CHECK(s1.leaf_count > 0 && s1.node_count > 0 && s1.average_leaf_depth > 0);
+    CHECK_EQ_INT(as_structure_convert(std, AS_LAYOUT_BVH2_CHILD_BOUNDS) == NULL, 1);
+    unlink(pa); unlink(pb); unlink(pc); unlink(pd);
+    as_structure_release(loaded);
+    as_structure_release(std);
+    as_structure_release(ropes);
+    as_structure_release(back);
+    as_structure_release(built_ropes);
+    as_mesh_release(m);
+}
+
+/* Builds a rope structure, damages one value, and expects validation to
+ * fail; then restores it. */
+static void validation_rejects_damaged_trees_and_ropes(void)
+{
+    as_mesh_t *m = soup(12, 3000, 0.05f);
+    as_build_args_t a = kd_args(AS_LAYOUT_KD_ROPES);
+    as_structure_t *s = as_structure_build(m, &a);
+    CHECK(s != NULL);
+    if (!s) { as_mesh_release(m); return; }
+    CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+    as_kd_node_t *nodes = (as_kd_node_t *)as_structure_find(s, ASF_TAG_KDN8)->owned;
+    uint32_t *prim = (uint32_t *)as_structure_find(s, ASF_TAG_PRIM)->owned;
+    as_kd_ropes_t *ropes = (as_kd_ropes_t *)as_structure_find(s, ASF_TAG_KDRP)->owned;
+    as_kd_leaf_box_t *boxes = (as_kd_leaf_box_t *)as_structure_find(s, ASF_TAG_KDLB)->owned;
+    as_tri4_t *tris = (as_tri4_t *)as_structure_find(s, ASF_TAG_TRIS)->owned;
+    const uint64_t node_count = as_structure_find(s, ASF_TAG_KDN8)->count;
+    uint32_t leaf = 0, inner = 0;
+    for (uint32_t i = 0; i < node_count; ++i) {
+        if (as_kd_is_leaf(nodes[i].word1)) { if (!leaf && prim[nodes[i].word0]) leaf = i; }
+        else inner = i;
+    }
+    struct { const char *what; uint32_t *word; uint32_t value; } damage[] = {
+        {"above child past the end", &nodes[0].word1, (((uint32_t)node_count + 5) << 2) | (nodes[0].word1 & 3)},
+        {"above child pointing at the root", &nodes[inner].word1, (0u << 2) | (nodes[inner].word1 & 3)},
+        {"split outside the node box", &nodes[0].word0, as_float_as_uint(1e9f)},
+        {"split NaN", &nodes[0].word0, 0x7fc00000u},
+        {"leaf list past PRIM", &nodes[leaf].word0, 0xfffffff0u},
+        {"leaf count past PRIM", &prim[nodes[leaf].word0], 0x7fffffffu},
+        {"triangle index past TRIS", &prim[nodes[leaf].word0 + 1], 1u << 30},
+        {"duplicate leaf index", &nodes[leaf].word1, (0u << 2) | 3u},
+        {"rope to another node", (uint32_t *)&ropes[1].rope[0], 0},
+        {"rope past the end", (uint32_t *)&ropes[0].rope[1], 0x7ffffff0u},
+        {"leaf box changed", (uint32_t *)&boxes[0].hi[0], as_float_as_uint(0.123f)},
+        {"TRIS source index", (uint32_t *)&tris[3].v0.w, 4},
+        {"TRIS NaN vertex", (uint32_t *)&tris[2].v1.y, 0x7fc00000u},
+    };
+    for (size_t k = 0; k < sizeof damage / sizeof damage[0]; ++k) {
+        const uint32_t saved = *damage[k].word;
+        if (saved == damage[k].value) continue;
+        *damage[k].word = damage[k].value;
+        const as_error_t err = as_structure_validate(s);
+        if (err != AS_ERROR_INVALID_STRUCTURE) fprintf(stderr, "  %s: damage not detected: %s\n", builder_name, damage[k].what);
+        CHECK_EQ_INT(err, AS_ERROR_INVALID_STRUCTURE);
+        *damage[k].word = saved;
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+    }
+    const uint64_t saved_nodes = s->meta.node_count;
+    s->meta.node_count++;
+    CHECK_EQ_INT(as_structure_validate(s), AS_ERROR_INVALID_STRUCTURE);
+    s->meta.node_count = saved_nodes;
+    s->meta.bounds_hi[0] = NAN;
+    CHECK_EQ_INT(as_structure_validate(s), AS_ERROR_INVALID_STRUCTURE);
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
+static void depth_cap_and_split_budget_are_respected(void)
+{
+    as_mesh_t *m = soup(13, 20000, 0.2f);
+    as_build_args_t a = kd_args(AS_LAYOUT_KD_STANDARD);
+    a.max_depth = 5;
+    a.max_leaf_size = 1;
+    as_structure_t *s = as_structure_build(m, &a);
+    as_structure_stats_t st;
+    CHECK(s && as_structure_get_stats(s, &st) == AS_OK);
+    if (s) CHECK(st.max_depth <= 5);
+    as_structure_release(s);
+    a.max_depth = 1000; /* capped at the stack */
+    a.split_budget = 1.5f;
+    s = as_structure_build(m, &a);
+    CHECK(s && as_structure_get_stats(s, &st) == AS_OK);
+    if (s) {
+        fprintf(stderr, "  %s: budget 1.5: %llu references for 20000 triangles, depth %u\n", builder_name,
+                (unsigned long long)st.reference_count, st.max_depth);
+        CHECK(st.reference_count <= 30000);
+        CHECK(st.max_depth <= AS_KD_MAX_DEPTH);
+    }
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
+static void a_single_triangle_and_an_all_degenerate_mesh_build_and_trace(void)
+{
+    const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    const uint32_t one[3] = {0, 1, 2}, degenerate[6] = {0, 0, 1, 0, 1, 1};
+    as_mesh_t *m1 = as_mesh_create(3, p, 1, one), *m2 = as_mesh_create(3, p, 2, degenerate);
+    CHECK(m1 && m2);
+    for (int l = 0; l < 2; ++l) {
+        as_build_args_t a = kd_args(l ? AS_LAYOUT_KD_ROPES : AS_LAYOUT_KD_STANDARD);
+        as_structure_t *s1 = as_structure_build(m1, &a), *s2 = as_structure_build(m2, &a);
+        CHECK(s1 && s2);
+        if (!s1 || !s2) { as_structure_release(s1); as_structure_release(s2); continue; }
+        CHECK_EQ_INT(as_structure_validate(s1), AS_OK);
+        CHECK_EQ_INT(as_structure_validate(s2), AS_OK);
+        const as_ray_t ray = {{0.2f, 0.2f, -1.0f}, 0.0f, {0.0f, 0.0f, 1.0f}, INFINITY};
+        const as_hit_t h1 = trace1(s1, &ray), h2 = trace1(s2, &ray);
+        CHECK_EQ_U64(h1.prim, 0);
+        CHECK(h1.t == 1.0f);
+        CHECK_EQ_U64(h2.prim, AS_NO_HIT);
+        as_structure_release(s1);
+        as_structure_release(s2);
+    }
+    as_mesh_release(m1);
+    as_mesh_release(m2);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) { fprintf(stderr, "usage: %s midcut|sah\n", argv[0]); return 2; }
+    builder_name = argv[1];
+    builder = as_builder_from_name(AS_STRUCT_KD, argv[1]);
+    if (!builder) return 2;
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/as_test_kd_XXXXXX");
+    if (!mkdtemp(tmpdir)) return 1;
+    RUN_TEST(build_is_byte_identical_for_1_2_3_threads);
+    RUN_TEST(progress_returning_false_cancels);
+    RUN_TEST(copies_of_one_triangle_stay_shallow_and_hit_the_lowest_index);
+    RUN_TEST(a_flat_scene_builds_and_is_hit_from_both_sides);
+    RUN_TEST(quads_on_split_planes_are_hit_by_crossing_rays);
+    RUN_TEST(conversion_keeps_the_tree_and_round_trips_byte_for_byte);
+    RUN_TEST(validation_rejects_damaged_trees_and_ropes);
+    RUN_TEST(depth_cap_and_split_budget_are_respected);
+    RUN_TEST(a_single_triangle_and_an_all_degenerate_mesh_build_and_trace);
+    rmdir(tmpdir);
+    TEST_EXIT();
+}
