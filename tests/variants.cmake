@@ -1,19 +1,8 @@
-# Every structure variant through tests/test_variants.c: synthetic cases,
-# then 100,000 rays of each real scene up to a million triangles (label
-# scenes); San Miguel and chopper-titan under the label large (GPU host).
+# Every structure variant through tests/test_variants.c: synthetic cases
+# against the brute force, then 100,000 rays of each real scene up to a
+# million triangles against as_verify's reference (label scenes); the larger
+# scenes under the label large (GPU host).
 as_add_test(test_variants_bvh_sah SOURCES test_variants.c ARGS bvh sah bvh2-child-bounds LABELS variants)
-
-# One brute-force reference per scene, cached for every variant.
-foreach(scene bunny.ply.zst staircase2.ply.zst staircase.ply.zst bathroom.drc bmw-m6.drc)
-  add_test(NAME reference_${scene} COMMAND test_variants_bvh_sah reference ${scene} 100000)
-  set_tests_properties(reference_${scene} PROPERTIES SKIP_RETURN_CODE 77 LABELS "variants;scenes"
-                       FIXTURES_SETUP reference_${scene})
-endforeach()
-foreach(scene bathroom2.drc chopper-titan.drc sanmiguel.drc)
-  add_test(NAME reference_${scene} COMMAND test_variants_bvh_sah reference ${scene} 100000)
-  set_tests_properties(reference_${scene} PROPERTIES SKIP_RETURN_CODE 77 LABELS "variants;large"
-                       FIXTURES_SETUP reference_${scene})
-endforeach()
 
 # as_add_variant(NAME STRUCTURE BUILDER LAYOUT)
 function(as_add_variant name structure builder layout)
@@ -21,13 +10,11 @@ function(as_add_variant name structure builder layout)
   set_tests_properties(variant_${name} PROPERTIES SKIP_RETURN_CODE 77 LABELS variants)
   foreach(scene bunny.ply.zst staircase2.ply.zst staircase.ply.zst bathroom.drc bmw-m6.drc)
     add_test(NAME variant_${name}_${scene} COMMAND test_variants_bvh_sah ${structure} ${builder} ${layout} scene ${scene} 100000)
-    set_tests_properties(variant_${name}_${scene} PROPERTIES SKIP_RETURN_CODE 77 LABELS "variants;scenes"
-                         FIXTURES_REQUIRED reference_${scene})
+    set_tests_properties(variant_${name}_${scene} PROPERTIES SKIP_RETURN_CODE 77 LABELS "variants;scenes")
   endforeach()
   foreach(scene bathroom2.drc chopper-titan.drc sanmiguel.drc)
     add_test(NAME variant_${name}_${scene} COMMAND test_variants_bvh_sah ${structure} ${builder} ${layout} scene ${scene} 100000)
-    set_tests_properties(variant_${name}_${scene} PROPERTIES SKIP_RETURN_CODE 77 LABELS "variants;large"
-                         FIXTURES_REQUIRED reference_${scene})
+    set_tests_properties(variant_${name}_${scene} PROPERTIES SKIP_RETURN_CODE 77 LABELS "variants;large")
   endforeach()
 endfunction()
 
