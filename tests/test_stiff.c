@@ -214,7 +214,14 @@ static void watertight_meshes_have_zero_leaks_far_from_the_origin(void)
                     }
             as_hit_t *hits = trace(s, rays, n, 0, NULL);
             size_t leaks = 0;
-            for (size_t i = 0; i < n; ++i) leaks += hits[i].prim == AS_NO_HIT;
+            for (size_t i = 0; i < n; ++i) {
+                if (hits[i].prim == AS_NO_HIT && leaks < 3)
+                    fprintf(stderr, "  leak: ray %zu org (%.9g %.9g %.9g) dir (%.9g %.9g %.9g) tmax %g\n", i,
+                            (double)rays[i].org[0], (double)rays[i].org[1], (double)rays[i].org[2],
+                            (double)rays[i].dir[0], (double)rays[i].dir[1], (double)rays[i].dir[2],
+                            (double)rays[i].tmax);
+                leaks += hits[i].prim == AS_NO_HIT;
+            }
             fprintf(stderr, "  %s %s at %g: %zu rays at vertices and edges, %zu leaks\n", variant_name,
                     kind ? "sphere" : "lattice cube", offsets[o], n, leaks);
             CHECK_EQ_U64(leaks, 0);

@@ -49,8 +49,8 @@ patch "$GOOD" "$D" "$TRI4" 00002042
 refused_unchecked "vertex moved outside its leaf's box" 3 "TRI4 triangle 0 lies outside the box of its leaf \\(node [0-9]+ child [01]\\) \\[INVALID_STRUCTURE\\]"
 
 # META (SPEC.md 3.2).
-patch "$GOOD" "$D" $((META + 36)) 00020000
-refused_unchecked "unknown structure kind" 5 "structure kind 0x0200 cannot be traced by this build.*\\[UNSUPPORTED\\]"
+patch "$GOOD" "$D" $((META + 36)) 00090000
+refused_unchecked "unknown structure kind" 5 "structure kind 0x0900 cannot be traced by this build.*\\[UNSUPPORTED\\]"
 patch "$GOOD" "$D" $((META + 40)) 02020000
 refused_unchecked "unknown layout" 5 "layout 0x0202 cannot be traced by this build.*\\[UNSUPPORTED\\]"
 patch "$GOOD" "$D" $((META + 44)) 02000000
