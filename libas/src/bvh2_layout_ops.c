@@ -67,22 +67,8 @@ static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit
                            int ray_flags, as_cpu_stats_t *stats)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2), *ts = as_structure_find(s, ASF_TAG_TRI4);
-    for (size_t i = 0; i < count; ++i) {
-        const as_ray_t *ray = &rays[i];
-        as_hit_rec_t h;
-        as_ray_pre_t pre;
-        as_trace_counters_t ctr = {0, 0};
-        /* A file loaded without validation may have no root at all. */
-        if (ns->count > 0 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, ray_flags, &pre))
-            as_bvh2_trace(ns->data, ts->data, &pre, any_hit, &h, stats ? &ctr : NULL);
-        else
-            as_hit_rec_miss(&h);
-        if (stats) as_cpu_stats_add(stats, ctr.node_visits, ctr.tri_tests);
-        hits[i].t = h.t;
-        hits[i].prim = h.prim;
-        hits[i].u = h.u;
-        hits[i].v = h.v;
-    }
+    AS_TRACE_CPU_LOOP(ns->count > 0,
+                      as_bvh2_trace(ns->data, ts->data, &pre, any_hit, &h, ctrp));
 }
 
 static as_error_t bvh2_convert(const as_structure_t *src, uint32_t target, as_structure_t *dst)

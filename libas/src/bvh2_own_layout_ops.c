@@ -67,21 +67,8 @@ static void own_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_
                           int ray_flags, as_cpu_stats_t *stats)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVHO), *ts = as_structure_find(s, ASF_TAG_TRI4);
-    for (size_t i = 0; i < count; ++i) {
-        const as_ray_t *ray = &rays[i];
-        as_hit_rec_t h;
-        as_ray_pre_t pre;
-        as_trace_counters_t ctr = {0, 0};
-        if (ns->count > 0 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, ray_flags, &pre))
-            as_bvh2o_trace(ns->data, ts->data, &pre, any_hit, &h, stats ? &ctr : NULL);
-        else
-            as_hit_rec_miss(&h);
-        if (stats) as_cpu_stats_add(stats, ctr.node_visits, ctr.tri_tests);
-        hits[i].t = h.t;
-        hits[i].prim = h.prim;
-        hits[i].u = h.u;
-        hits[i].v = h.v;
-    }
+    AS_TRACE_CPU_LOOP(ns->count > 0,
+                      as_bvh2o_trace(ns->data, ts->data, &pre, any_hit, &h, ctrp));
 }
 
 static void *copy_section(const as_section_t *sec, const char *what)

@@ -52,21 +52,8 @@ static void grid_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit
 {
     const as_section_t *hs = as_structure_find(s, ASF_TAG_GRDH), *cs = as_structure_find(s, ASF_TAG_GRDC),
                        *ps = as_structure_find(s, ASF_TAG_PRIM), *ts = as_structure_find(s, ASF_TAG_TRIS);
-    for (size_t i = 0; i < count; ++i) {
-        const as_ray_t *ray = &rays[i];
-        as_hit_rec_t h;
-        as_ray_pre_t pre;
-        as_trace_counters_t ctr = {0, 0};
-        if (hs->count == 1 && cs->count > 1 && as_ray_prepare(ray->org, ray->tmin, ray->dir, ray->tmax, ray_flags, &pre))
-            as_grid_trace(hs->data, cs->data, ps->data, ts->data, &pre, any_hit, &h, stats ? &ctr : NULL);
-        else
-            as_hit_rec_miss(&h);
-        if (stats) as_cpu_stats_add(stats, ctr.node_visits, ctr.tri_tests);
-        hits[i].t = h.t;
-        hits[i].prim = h.prim;
-        hits[i].u = h.u;
-        hits[i].v = h.v;
-    }
+    AS_TRACE_CPU_LOOP(hs->count == 1 && cs->count > 1,
+                      as_grid_trace(hs->data, cs->data, ps->data, ts->data, &pre, any_hit, &h, ctrp));
 }
 
 const as_layout_ops_t as_layout_grid = {

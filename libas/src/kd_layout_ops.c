@@ -93,14 +93,6 @@ static void scene_box(const as_structure_t *s, float box[6])
     memcpy(box + 3, s->meta.bounds_hi, sizeof(float) * 3);
 }
 
-static void store_hit(as_hit_t *out, const as_hit_rec_t *h)
-{
-    out->t = h->t;
-    out->prim = h->prim;
-    out->u = h->u;
-    out->v = h->v;
-}
-
 static void kd_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count, int any_hit,
                          int ray_flags, as_cpu_stats_t *stats)
 {
@@ -108,17 +100,8 @@ static void kd_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t
                        *ts = as_structure_find(s, ASF_TAG_TRIS);
     float box[6];
     scene_box(s, box);
-    for (size_t i = 0; i < count; ++i) {
-        as_hit_rec_t h;
-        as_ray_pre_t pre;
-        as_trace_counters_t ctr = {0, 0};
-        if (ns->count > 0 && as_ray_prepare(rays[i].org, rays[i].tmin, rays[i].dir, rays[i].tmax, ray_flags, &pre))
-            as_kd_trace(ns->data, ps->data, ts->data, box, &pre, any_hit, &h, stats ? &ctr : NULL);
-        else
-            as_hit_rec_miss(&h);
-        if (stats) as_cpu_stats_add(stats, ctr.node_visits, ctr.tri_tests);
-        store_hit(&hits[i], &h);
-    }
+    AS_TRACE_CPU_LOOP(ns->count > 0,
+                      as_kd_trace(ns->data, ps->data, ts->data, box, &pre, any_hit, &h, ctrp));
 }
 
 static void kd_ropes_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit_t *hits, size_t count,
@@ -129,18 +112,9 @@ static void kd_ropes_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as
                        *bs = as_structure_find(s, ASF_TAG_KDLB);
     float box[6];
     scene_box(s, box);
-    for (size_t i = 0; i < count; ++i) {
-        as_hit_rec_t h;
-        as_ray_pre_t pre;
-        as_trace_counters_t ctr = {0, 0};
-        if (ns->count > 0 && as_ray_prepare(rays[i].org, rays[i].tmin, rays[i].dir, rays[i].tmax, ray_flags, &pre))
-            as_kd_ropes_trace(ns->data, ps->data, ts->data, rs->data, bs->data, (uint32_t)rs->count, box, &pre,
-                              any_hit, &h, stats ? &ctr : NULL);
-        else
-            as_hit_rec_miss(&h);
-        if (stats) as_cpu_stats_add(stats, ctr.node_visits, ctr.tri_tests);
-        store_hit(&hits[i], &h);
-    }
+    AS_TRACE_CPU_LOOP(ns->count > 0,
+                      as_kd_ropes_trace(ns->data, ps->data, ts->data, rs->data, bs->data, (uint32_t)rs->count, box,
+                                        &pre, any_hit, &h, ctrp));
 }
 
 /* Copies the shared sections (KDN8, PRIM, TRIS) and META: the tree bytes are

@@ -57,6 +57,30 @@ typedef struct as_cpu_stats {
     uint32_t steps_max, tests_max;
 } as_cpu_stats_t;
 
+/* The per-ray loop of every layout's trace_cpu (whose parameters it uses:
+ * rays, hits, count, ray_flags, stats): prepares each ray and, when READY
+ * holds (the sections have what the traversal starts from: a file loaded
+ * without validation may have no root), evaluates TRAVERSE, which traces
+ * `pre` into `h` and counts into `ctrp` (NULL unless counting); bad rays
+ * and the rest miss. */
+#define AS_TRACE_CPU_LOOP(READY, TRAVERSE)                                                   \
+    for (size_t i_ = 0; i_ < count; ++i_) {                                                  \
+        const as_ray_t *ray_ = &rays[i_];                                                    \
+        as_hit_rec_t h;                                                                      \
+        as_ray_pre_t pre;                                                                    \
+        as_trace_counters_t ctr_ = {0, 0};                                                   \
+        as_trace_counters_t *ctrp = stats ? &ctr_ : NULL;                                    \
+        if ((READY) && as_ray_prepare(ray_->org, ray_->tmin, ray_->dir, ray_->tmax, ray_flags, &pre)) \
+            TRAVERSE;                                                                        \
+        else                                                                                 \
+            as_hit_rec_miss(&h);                                                             \
+        if (stats) as_cpu_stats_add(stats, ctr_.node_visits, ctr_.tri_tests);               \
+        hits[i_].t = h.t;                                                                    \
+        hits[i_].prim = h.prim;                                                              \
+        hits[i_].u = h.u;                                                                    \
+        hits[i_].v = h.v;                                                                    \
+    }
+
 /* Adds one ray's counters. */
 static inline void as_cpu_stats_add(as_cpu_stats_t *s, uint32_t steps, uint32_t tests)
 {
