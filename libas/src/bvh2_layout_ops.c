@@ -7,15 +7,19 @@
 #include <stdlib.h>
 #include <string.h>
 
-static double half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
+#define half_area6 as_half_area6
+
+double as_bvh2_sah_from_sums(double ct, double ci, double root_area, double inner_area, double leaf_area_count,
+                             uint64_t inner_count, uint64_t ref_count)
 {
-    const double dx = (double)hix - lox, dy = (double)hiy - loy, dz = (double)hiz - loz;
-    if (!(dx >= 0 && dy >= 0 && dz >= 0)) return 0.0;
-    return dx * dy + dy * dz + dz * dx;
+    if (!(root_area > 0)) return ct * (double)inner_count + ci * (double)ref_count;
+    return (ct * inner_area + ci * leaf_area_count) / root_area;
 }
 
 /* One walk for the SAH cost and the statistics; the tree is valid (built or
- * validated), so the explicit stack never holds more than depth + 1. */
+ * validated), so the explicit stack never holds more than depth + 1. The
+ * sums run in pre-order, left child first, as the builders' output walk
+ * (bvh_build_common.c) adds them, so both give the same cost to the bit. */
 static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2);
@@ -25,7 +29,8 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
                                         s->meta.bounds_hi[1], s->meta.bounds_lo[2], s->meta.bounds_hi[2]);
     struct { int32_t node; uint32_t depth; double area; } stack[AS_BVH2_MAX_DEPTH + 2];
     int sp = 0;
-    double sah = 0.0;
+    double inner_area = 0.0, leaf_area_count = 0.0;
+    uint64_t inner_count = 0, ref_count = 0;
     uint64_t depth_sum = 0;
     stack[sp].node = 0; stack[sp].depth = 0; stack[sp].area = root_area; ++sp;
     while (sp > 0) {
@@ -33,16 +38,14 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
         const int32_t ni = stack[sp].node;
         const uint32_t depth = stack[sp].depth;
         const as_bvh2_node_t *n = &nodes[ni];
-        sah += ct * (root_area > 0 ? stack[sp].area / root_area : 1.0);
+        inner_area += stack[sp].area;
+        inner_count++;
         const double ca[2] = {half_area6(n->xy0.x, n->xy0.y, n->xy0.z, n->xy0.w, n->z01.x, n->z01.y),
                               half_area6(n->xy1.x, n->xy1.y, n->xy1.z, n->xy1.w, n->z01.z, n->z01.w)};
         for (int k = 0; k < 2; ++k) {
-            if (n->child[k] >= 0) {
-                if (sp >= AS_BVH2_MAX_DEPTH + 2) continue;
-                stack[sp].node = n->child[k]; stack[sp].depth = depth + 1; stack[sp].area = ca[k]; ++sp;
-                continue;
-            }
-            sah += ci * n->count[k] * (root_area > 0 ? ca[k] / root_area : 1.0);
+            if (n->child[k] >= 0) continue;
+            leaf_area_count += ca[k] * n->count[k];
+            ref_count += n->count[k];
             if (!st || n->count[k] == 0) continue; /* the empty sibling of a one-leaf tree */
             st->leaf_count++;
             if (depth + 1 > st->max_depth) st->max_depth = depth + 1;
@@ -50,9 +53,14 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
             st->depth_histogram[depth + 1 < AS_HISTOGRAM_BINS ? depth + 1 : AS_HISTOGRAM_BINS - 1]++;
             st->leaf_size_histogram[n->count[k] < AS_HISTOGRAM_BINS ? n->count[k] : AS_HISTOGRAM_BINS - 1]++;
         }
+        /* Right child pushed first, so the left one is walked first. */
+        for (int k = 1; k >= 0; --k) {
+            if (n->child[k] < 0 || sp >= AS_BVH2_MAX_DEPTH + 2) continue;
+            stack[sp].node = n->child[k]; stack[sp].depth = depth + 1; stack[sp].area = ca[k]; ++sp;
+        }
     }
     if (st) st->average_leaf_depth = st->leaf_count ? (double)depth_sum / (double)st->leaf_count : 0.0;
-    return sah;
+    return as_bvh2_sah_from_sums(ct, ci, root_area, inner_area, leaf_area_count, inner_count, ref_count);
 }
 
 double as_bvh2_sah_cost(const as_structure_t *s) { return bvh2_walk(s, NULL); }

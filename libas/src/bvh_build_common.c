@@ -6,6 +6,8 @@
  * whatever the thread count and however threads were scheduled (tmp node
  * indices, which do depend on scheduling, never reach the file). */
 #include "bvh_build_common.h"
+#include "simd4.h"
+#include "task_pool.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -79,6 +81,15 @@ void bvh_builder_free(bvh_builder *b)
     b->args = NULL;
 }
 
+static inline bvh_box box_from_v4f(v4f lo, v4f hi)
+{
+    float l[4], h[4];
+    v4f_store(l, lo);
+    v4f_store(h, hi);
+    const bvh_box bx = {{l[0], l[1], l[2]}, {h[0], h[1], h[2]}};
+    return bx;
+}
+
 bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count)
 {
     bvh_box bx = bvh_box_empty();
@@ -86,83 +97,195 @@ bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count)
     return bx;
 }
 
-bvh_box bvh_refs_centroid_box(const bvh_ref *refs, uint32_t count)
+bvh_box bvh_refs_centroid2_box(const bvh_ref *refs, uint32_t count)
 {
-    bvh_box cb = bvh_box_empty();
+    v4f lo = v4f_set1(INFINITY), hi = v4f_set1(-INFINITY);
     for (uint32_t i = 0; i < count; ++i) {
-        const float c[3] = {bvh_ref_centroid(&refs[i], 0), bvh_ref_centroid(&refs[i], 1), bvh_ref_centroid(&refs[i], 2)};
-        bvh_box_grow(&cb, c, c);
+        const v4f c = v4f_add(v4f_load3(refs[i].lo), v4f_load3(refs[i].hi));
+        lo = v4f_min(lo, c);
+        hi = v4f_max(hi, c);
     }
-    return cb;
+    return box_from_v4f(lo, hi);
 }
 
-bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb, uint32_t nb)
+void bvh_range_bound(const bvh_builder *b, bvh_range *r)
 {
-    bvh_object_split best = {-1, 0, INFINITY, 0, 0};
-    /* One pass over the references bins all three axes. */
-    float scale[3];
+    const bvh_ref *refs = b->refs + r->first;
+    v4f lo = v4f_set1(INFINITY), hi = v4f_set1(-INFINITY), clo = lo, chi = hi;
+    for (uint32_t i = 0; i < r->count; ++i) {
+        const v4f l = v4f_load3(refs[i].lo), h = v4f_load3(refs[i].hi), c = v4f_add(l, h);
+        lo = v4f_min(lo, l);
+        hi = v4f_max(hi, h);
+        clo = v4f_min(clo, c);
+        chi = v4f_max(chi, c);
+    }
+    r->box = box_from_v4f(lo, hi);
+    r->cbox = box_from_v4f(clo, chi);
+}
+
+static inline float v4f_half_area(v4f lo, v4f hi)
+{
+    float d[4];
+    v4f_store(d, v4f_sub(hi, lo));
+    if (d[0] < 0.0f || d[1] < 0.0f || d[2] < 0.0f) return 0.0f;
+    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0];
+}
+
+/* The bin of every axis for one reference, clamped into [0, nb - 1]. The
+ * partition (bvh_object_split_left) repeats the same float operations on
+ * one axis, so both always agree. */
+static inline void bin_of(v4f lo, v4f hi, v4f cmin, v4f scale, v4f last, int32_t k[4])
+{
+    v4f f = v4f_mul(v4f_sub(v4f_add(lo, hi), cmin), scale);
+    f = v4f_min(v4f_max(f, v4f_set1(0.0f)), last);
+    v4f_to_i32(f, k);
+}
+
+bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t nb)
+{
+    bvh_object_split best;
+    memset(&best, 0, sizeof best);
+    best.axis = -1;
+    best.cost = INFINITY;
+    best.bin_count = nb;
     int use[3];
+    float cmin[4] = {0, 0, 0, 0}, scale[4] = {0, 0, 0, 0};
     for (int axis = 0; axis < 3; ++axis) {
-        const float extent = cb->hi[axis] - cb->lo[axis];
+        const float extent = cb2->hi[axis] - cb2->lo[axis];
         use[axis] = extent > 0.0f;
-        /* The (1 - 1e-6) keeps the largest centroid inside the last bin. */
-        scale[axis] = use[axis] ? (float)nb * (1.0f - 1e-6f) / extent : 0.0f;
+        cmin[axis] = cb2->lo[axis];
+        scale[axis] = use[axis] ? (float)nb / extent : 0.0f;
+        best.cmin[axis] = cmin[axis];
+        best.scale[axis] = scale[axis];
     }
     if (!use[0] && !use[1] && !use[2]) return best;
-    bvh_box bins[3][BVH_MAX_BINS];
-    uint32_t counts[3][BVH_MAX_BINS];
-    for (int axis = 0; axis < 3; ++axis)
-        for (uint32_t i = 0; i < nb; ++i) { bins[axis][i] = bvh_box_empty(); counts[axis][i] = 0; }
-    for (uint32_t i = 0; i < count; ++i) {
-        const bvh_ref *r = &refs[i];
-        for (int axis = 0; axis < 3; ++axis) {
-            if (!use[axis]) continue;
-            const float c = bvh_ref_centroid(r, axis);
-            int k = (int)((c - cb->lo[axis]) * scale[axis]);
-            if (k < 0) k = 0;
-            if (k >= (int)nb) k = (int)nb - 1;
-            bvh_box_grow(&bins[axis][k], r->lo, r->hi);
-            counts[axis][k]++;
+
+    /* One pass over the references bins all three axes. */
+    v4f blo[3][BVH_MAX_BINS], bhi[3][BVH_MAX_BINS];
+    uint32_t bn[3][BVH_MAX_BINS];
+    uint64_t occupied[3][BVH_MAX_BINS / 64];
+    memset(occupied, 0, sizeof occupied);
+    const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY);
+    const v4f vcmin = v4f_load(cmin), vscale = v4f_load(scale), last = v4f_set1((float)(nb - 1));
+    if (count >= 4 * nb) {
+        /* Large node: two sets of bins, even references into one and odd
+         * into the other, so that neighbours in the same bin (meshes are
+         * coherent) do not wait on each other's stores. */
+        v4f blo2[3][BVH_MAX_BINS], bhi2[3][BVH_MAX_BINS];
+        uint32_t bn2[3][BVH_MAX_BINS];
+        for (int axis = 0; axis < 3; ++axis)
+            for (uint32_t x = 0; x < nb; ++x) {
+                blo[axis][x] = blo2[axis][x] = empty_lo;
+                bhi[axis][x] = bhi2[axis][x] = empty_hi;
+                bn[axis][x] = bn2[axis][x] = 0;
+            }
+        uint32_t i = 0;
+        for (; i + 1 < count; i += 2) {
+            const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
+            const v4f lo1 = v4f_load3(refs[i + 1].lo), hi1 = v4f_load3(refs[i + 1].hi);
+            int32_t k0[4], k1[4];
+            bin_of(lo0, hi0, vcmin, vscale, last, k0);
+            bin_of(lo1, hi1, vcmin, vscale, last, k1);
+            for (int axis = 0; axis < 3; ++axis) {
+                const int32_t x0 = k0[axis], x1 = k1[axis];
+                blo[axis][x0] = v4f_min(blo[axis][x0], lo0);
+                bhi[axis][x0] = v4f_max(bhi[axis][x0], hi0);
+                bn[axis][x0]++;
+                blo2[axis][x1] = v4f_min(blo2[axis][x1], lo1);
+                bhi2[axis][x1] = v4f_max(bhi2[axis][x1], hi1);
+                bn2[axis][x1]++;
+            }
+        }
+        if (i < count) {
+            const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
+            int32_t k0[4];
+            bin_of(lo0, hi0, vcmin, vscale, last, k0);
+            for (int axis = 0; axis < 3; ++axis) {
+                blo[axis][k0[axis]] = v4f_min(blo[axis][k0[axis]], lo0);
+                bhi[axis][k0[axis]] = v4f_max(bhi[axis][k0[axis]], hi0);
+                bn[axis][k0[axis]]++;
+            }
+        }
+        for (int axis = 0; axis < 3; ++axis)
+            for (uint32_t x = 0; x < nb; ++x) {
+                blo[axis][x] = v4f_min(blo[axis][x], blo2[axis][x]);
+                bhi[axis][x] = v4f_max(bhi[axis][x], bhi2[axis][x]);
+                bn[axis][x] += bn2[axis][x];
+                if (bn[axis][x]) occupied[axis][x >> 6] |= (uint64_t)1 << (x & 63);
+            }
+    } else {
+        /* Small node: only the bins its references fall in are set up, in
+         * a first pass that remembers the bins, so the node costs what its
+         * references cost, not what the bins do, and no branch depends on
+         * the data. */
+        uint8_t kk[4 * BVH_MAX_BINS][3];
+        for (uint32_t i = 0; i < count; ++i) {
+            const v4f lo = v4f_load3(refs[i].lo), hi = v4f_load3(refs[i].hi);
+            int32_t k[4];
+            bin_of(lo, hi, vcmin, vscale, last, k);
+            for (int axis = 0; axis < 3; ++axis) {
+                const int32_t x = k[axis];
+                kk[i][axis] = (uint8_t)x;
+                occupied[axis][x >> 6] |= (uint64_t)1 << (x & 63);
+                blo[axis][x] = empty_lo;
+                bhi[axis][x] = empty_hi;
+                bn[axis][x] = 0;
+            }
+        }
+        for (uint32_t i = 0; i < count; ++i) {
+            const v4f lo = v4f_load3(refs[i].lo), hi = v4f_load3(refs[i].hi);
+            for (int axis = 0; axis < 3; ++axis) {
+                const uint32_t x = kk[i][axis];
+                blo[axis][x] = v4f_min(blo[axis][x], lo);
+                bhi[axis][x] = v4f_max(bhi[axis][x], hi);
+                bn[axis][x]++;
+            }
         }
     }
+
+    /* Sweep the occupied bins only: a plane between two empty bins splits
+     * like the plane after the last occupied bin on its left. */
     for (int axis = 0; axis < 3; ++axis) {
         if (!use[axis]) continue;
-        double right_area[BVH_MAX_BINS];
+        uint32_t occ[BVH_MAX_BINS], m = 0;
+        for (uint32_t w = 0; w < (nb + 63) / 64; ++w)
+            for (uint64_t bits = occupied[axis][w]; bits; bits &= bits - 1)
+                occ[m++] = 64 * w + (uint32_t)__builtin_ctzll(bits);
+        if (m < 2) continue;
+        float right_area[BVH_MAX_BINS];
         uint32_t right_count[BVH_MAX_BINS];
-        bvh_box acc = bvh_box_empty();
+        v4f rlo[BVH_MAX_BINS], rhi[BVH_MAX_BINS];
+        v4f alo = empty_lo, ahi = empty_hi;
         uint32_t n = 0;
-        for (int i = (int)nb - 1; i > 0; --i) {
-            bvh_box_grow(&acc, bins[axis][i].lo, bins[axis][i].hi);
-            n += counts[axis][i];
-            right_area[i] = bvh_box_half_area(&acc);
-            right_count[i] = n;
+        for (uint32_t j = m; j-- > 1;) {
+            alo = v4f_min(alo, blo[axis][occ[j]]);
+            ahi = v4f_max(ahi, bhi[axis][occ[j]]);
+            n += bn[axis][occ[j]];
+            right_area[j] = v4f_half_area(alo, ahi);
+            right_count[j] = n;
+            rlo[j] = alo;
+            rhi[j] = ahi;
         }
-        acc = bvh_box_empty();
+        alo = empty_lo;
+        ahi = empty_hi;
         n = 0;
-        for (uint32_t i = 0; i + 1 < nb; ++i) {
-            bvh_box_grow(&acc, bins[axis][i].lo, bins[axis][i].hi);
-            n += counts[axis][i];
-            if (n == 0 || right_count[i + 1] == 0) continue;
-            const double cost = bvh_box_half_area(&acc) * n + right_area[i + 1] * right_count[i + 1];
+        for (uint32_t j = 0; j + 1 < m; ++j) {
+            alo = v4f_min(alo, blo[axis][occ[j]]);
+            ahi = v4f_max(ahi, bhi[axis][occ[j]]);
+            n += bn[axis][occ[j]];
+            const double cost = (double)v4f_half_area(alo, ahi) * n + (double)right_area[j + 1] * right_count[j + 1];
             if (cost < best.cost) {
                 best.axis = axis;
-                best.bin = (int)i;
+                best.bin = (int)occ[j];
                 best.cost = cost;
-                best.cmin = cb->lo[axis];
-                best.scale = scale[axis];
+                best.left = box_from_v4f(alo, ahi);
+                best.right = box_from_v4f(rlo[j + 1], rhi[j + 1]);
+                best.left_count = n;
+                best.right_count = right_count[j + 1];
             }
         }
     }
     return best;
-}
-
-int bvh_object_split_left(const bvh_ref *r, const bvh_object_split *s, uint32_t nb)
-{
-    const float c = bvh_ref_centroid(r, s->axis);
-    int k = (int)((c - s->cmin) * s->scale);
-    if (k < 0) k = 0;
-    if (k >= (int)nb) k = (int)nb - 1;
-    return k <= s->bin;
 }
 
 void bvh_report_progress(bvh_builder *b, uint64_t prims)
@@ -206,67 +329,113 @@ void bvh_thread_done(bvh_builder *b) { atomic_fetch_sub(&b->live_threads, 1); }
 
 /* ---- the in-place recursion shared by the binned, sweep and mid-cut builders */
 
-typedef struct inplace_task {
-    bvh_builder *b;
-    bvh_split_fn split;
-    int32_t node;
-    uint32_t first, count, depth;
-} inplace_task;
-
-static void inplace_recursive(bvh_builder *b, bvh_split_fn split, int32_t node, uint32_t first, uint32_t count,
-                              uint32_t depth);
-
-static void *inplace_thread(void *arg)
+uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
+                              bvh_range *right)
 {
-    const inplace_task *t = arg;
-    inplace_recursive(t->b, t->split, t->node, t->first, t->count, t->depth);
-    bvh_thread_done(t->b);
-    return NULL;
+    bvh_ref *refs = b->refs;
+    uint32_t i = node->first, j = node->first + node->count;
+    const v4f inf = v4f_set1(INFINITY), ninf = v4f_set1(-INFINITY);
+    v4f llo = inf, lhi = ninf, lclo = inf, lchi = ninf;
+    v4f rlo = inf, rhi = ninf, rclo = inf, rchi = ninf;
+    /* Hoare's partition: sequential, so the order is reproducible; the
+     * bounds of both sides come with it, so the children need no pass of
+     * their own. */
+    for (;;) {
+        while (i < j && bvh_object_split_left(&refs[i], s)) {
+            const v4f l = v4f_load3(refs[i].lo), h = v4f_load3(refs[i].hi), c = v4f_add(l, h);
+            llo = v4f_min(llo, l); lhi = v4f_max(lhi, h); lclo = v4f_min(lclo, c); lchi = v4f_max(lchi, c);
+            ++i;
+        }
+        while (i < j && !bvh_object_split_left(&refs[j - 1], s)) {
+            --j;
+            const v4f l = v4f_load3(refs[j].lo), h = v4f_load3(refs[j].hi), c = v4f_add(l, h);
+            rlo = v4f_min(rlo, l); rhi = v4f_max(rhi, h); rclo = v4f_min(rclo, c); rchi = v4f_max(rchi, c);
+        }
+        if (i >= j) break;
+        const bvh_ref t = refs[i];
+        refs[i] = refs[j - 1];
+        refs[j - 1] = t;
+        /* Now refs[i] goes left and refs[j - 1] right; the loops above take
+         * them on their next turn. */
+    }
+    left->first = node->first;
+    left->count = i - node->first;
+    left->box = box_from_v4f(llo, lhi);
+    left->cbox = box_from_v4f(lclo, lchi);
+    right->first = i;
+    right->count = node->first + node->count - i;
+    right->box = box_from_v4f(rlo, rhi);
+    right->cbox = box_from_v4f(rclo, rchi);
+    return i;
 }
 
-/* Builds the subtree of tmp node `node`, whose box is already set. */
-static void inplace_recursive(bvh_builder *b, bvh_split_fn split, int32_t node, uint32_t first, uint32_t count,
-                              uint32_t depth)
-{
-    /* A leaf at the stack's depth whatever its size: the traversal stack
-     * holds one entry per level. */
-    if (atomic_load(&b->cancelled) || count <= 1 || depth + 1 >= b->depth_limit) {
-        bvh_make_leaf(b, node, b->refs + first, count);
-        return;
-    }
-    const bvh_box node_box = b->nodes[node].box;
-    const uint32_t mid = split(b, first, count, &node_box);
-    if (mid <= first || mid >= first + count) {
-        bvh_make_leaf(b, node, b->refs + first, count);
-        return;
-    }
-    const int32_t l = bvh_new_node(b), r = bvh_new_node(b);
-    bvh_tmp_node *ln = &b->nodes[l], *rn = &b->nodes[r];
-    ln->box = bvh_refs_box(b->refs + first, mid - first);
-    rn->box = bvh_refs_box(b->refs + mid, first + count - mid);
-    bvh_tmp_node *n = &b->nodes[node];
-    n->left = l;
-    n->right = r;
-    n->count = 0;
-    n->refs = NULL;
+typedef struct inplace_task {
+    bvh_range range;
+    int32_t node;
+    uint32_t depth;
+} inplace_task;
 
-    const uint32_t lcount = mid - first, rcount = first + count - mid;
-    pthread_t tid;
-    inplace_task task = {b, split, l, first, lcount, depth + 1};
-    int spawned = 0;
-    if (lcount >= BVH_PARALLEL_MIN_PRIMS && rcount >= BVH_PARALLEL_MIN_PRIMS)
-        spawned = bvh_spawn(b, &tid, inplace_thread, &task);
-    if (!spawned) inplace_recursive(b, split, l, first, lcount, depth + 1);
-    inplace_recursive(b, split, r, mid, rcount, depth + 1);
-    if (spawned) pthread_join(tid, NULL);
+typedef struct inplace_ctx {
+    bvh_builder *b;
+    bvh_split_fn split;
+} inplace_ctx;
+
+/* Builds the subtree of task t: recurses into the left child and loops on
+ * the right one, and hands a child to an idle thread when it is big enough
+ * to be worth it. */
+static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, inplace_task t)
+{
+    bvh_builder *b = ctx->b;
+    for (;;) {
+        bvh_tmp_node *n = &b->nodes[t.node];
+        n->box = t.range.box;
+        bvh_range l, r;
+        /* A leaf at the stack's depth whatever its size: the traversal
+         * stack holds one entry per level. */
+        if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t.range.count <= 1 ||
+            t.depth + 1 >= b->depth_limit || !ctx->split(b, &t.range, &l, &r)) {
+            bvh_make_leaf(b, t.node, b->refs + t.range.first, t.range.count);
+            return;
+        }
+        const int32_t ln = bvh_new_node(b), rn = bvh_new_node(b);
+        n = &b->nodes[t.node];
+        n->left = ln;
+        n->right = rn;
+        n->count = 0;
+        n->refs = NULL;
+        const inplace_task lt = {l, ln, t.depth + 1}, rt = {r, rn, t.depth + 1};
+        if (pool && rt.range.count >= BVH_PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &rt)) {
+            t = lt;
+            continue;
+        }
+        inplace_subtree(pool, ctx, lt);
+        t = rt;
+    }
+}
+
+static void inplace_run(as_task_pool *pool, void *task, void *user)
+{
+    inplace_task t;
+    memcpy(&t, task, sizeof t);
+    inplace_subtree(pool, user, t);
 }
 
 int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split)
 {
     const int32_t root = bvh_new_node(b);
-    b->nodes[root].box = b->root_box;
     b->nodes[root].left = b->nodes[root].right = -1;
-    inplace_recursive(b, split, root, 0, b->ref_count, 0);
+    inplace_task t;
+    memset(&t, 0, sizeof t);
+    t.range.first = 0;
+    t.range.count = b->ref_count;
+    bvh_range_bound(b, &t.range);
+    t.node = root;
+    t.depth = 0;
+    const inplace_ctx ctx = {b, split};
+    const unsigned threads = (unsigned)b->max_threads + 1;
+    if (threads < 2 || b->ref_count < 2 * BVH_PARALLEL_MIN_PRIMS ||
+        !as_task_pool_run(threads, sizeof t, &t, inplace_run, (void *)&ctx))
+        inplace_subtree(NULL, &ctx, t);
     return root;
 }
 
@@ -280,6 +449,7 @@ typedef struct flatten_state {
     uint32_t tri_count;
     uint64_t leaf_count;
     uint32_t max_depth;
+    double inner_area, leaf_area_count;   /* SAH sums, in bvh2_walk's order */
 } flatten_state;
 
 static void set_child_box(as_bvh2_node_t *o, int which, const bvh_box *bx)
@@ -311,9 +481,15 @@ static int32_t emit_leaf(flatten_state *st, const bvh_tmp_node *t)
     return ~(int32_t)start;
 }
 
-static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32_t depth)
+static double box_area(const bvh_box *bx)
+{
+    return as_half_area6(bx->lo[0], bx->hi[0], bx->lo[1], bx->hi[1], bx->lo[2], bx->hi[2]);
+}
+
+static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32_t depth, double area)
 {
     const bvh_tmp_node *t = &st->b->nodes[tnode];
+    st->inner_area += area;
     if (depth > st->max_depth) st->max_depth = depth;
     const int32_t kids[2] = {t->left, t->right};
     /* Reserve both inner children first so siblings are adjacent. The
@@ -338,27 +514,13 @@ static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32
             if (c->count == 0) {
                 const bvh_box inverted = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
                 set_child_box(o, k, &inverted);
+            } else {
+                st->leaf_area_count += box_area(&c->box) * c->count;
             }
         }
     }
     for (int k = 0; k < 2; ++k)
-        if (slot[k] >= 0) flatten(st, kids[k], (uint64_t)slot[k], depth + 1);
-}
-
-static uint64_t count_refs(const bvh_builder *b, int32_t root)
-{
-    uint64_t total = 0;
-    /* The tmp tree is at most depth_limit deep: an explicit stack. */
-    int32_t stack[2 * AS_BVH2_MAX_DEPTH + 4];
-    int sp = 0;
-    stack[sp++] = root;
-    while (sp > 0) {
-        const bvh_tmp_node *n = &b->nodes[stack[--sp]];
-        if (n->left < 0) { total += n->count; continue; }
-        stack[sp++] = n->left;
-        stack[sp++] = n->right;
-    }
-    return total;
+        if (slot[k] >= 0) flatten(st, kids[k], (uint64_t)slot[k], depth + 1, box_area(&st->b->nodes[kids[k]].box));
 }
 
 as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id, as_structure_t *s,
@@ -379,10 +541,12 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
         b->nodes[root].left = l;
         b->nodes[root].right = r;
     }
-    const uint64_t refs = count_refs(b, root);
+    /* Nodes come in pairs, one pair per split, after the root; every leaf
+     * reported its references to the progress count. */
+    const uint64_t inner = (atomic_load(&b->node_next) - 1) / 2;
+    const uint64_t refs = atomic_load(&b->prims_done);
     if (refs > INT32_MAX) return as_set_error(AS_ERROR_UNSUPPORTED, "%llu references exceed the 31-bit TRI4 range",
                                               (unsigned long long)refs);
-    const uint64_t inner = atomic_load(&b->node_next); /* upper bound on inner nodes */
     as_bvh2_node_t *out = as_aligned_alloc(sizeof(as_bvh2_node_t) * inner, "BVH2 nodes");
     as_tri4_t *tris = as_aligned_alloc(sizeof(as_tri4_t) * (size_t)(refs ? refs : 1), "TRI4 triangles");
     if (!out || !tris) {
@@ -390,12 +554,19 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
         free(tris);
         return as_get_error();
     }
-    memset(out, 0, sizeof(as_bvh2_node_t) * inner);
-    flatten_state st = {b, out, 1, tris, 0, 0, 0};
-    flatten(&st, root, 0, 0);
+    /* No memset: the walk writes every field of every node (64 bytes, no
+     * padding, asserted in bvh2_layout.h). */
+    const as_mesh_t *mesh = b->mesh;
+    const double root_area = as_half_area6(mesh->bounds_lo[0], mesh->bounds_hi[0], mesh->bounds_lo[1],
+                                           mesh->bounds_hi[1], mesh->bounds_lo[2], mesh->bounds_hi[2]);
+    flatten_state st = {b, out, 1, tris, 0, 0, 0, 0.0, 0.0};
+    flatten(&st, root, 0, 0, root_area);
+    if (st.out_count != inner || st.tri_count != refs)
+        return as_set_error(AS_ERROR_UNKNOWN, "BVH build bookkeeping: %llu nodes and %u references written, %llu and %llu counted",
+                            (unsigned long long)st.out_count, st.tri_count, (unsigned long long)inner,
+                            (unsigned long long)refs);
 
     const as_build_args_t *args = b->args;
-    const as_mesh_t *mesh = b->mesh;
     as_structure_t cb;
     memset(&cb, 0, sizeof cb);
     as_structure_t *d = args->layout == AS_LAYOUT_BVH2_OWN_BOUNDS ? &cb : s;
@@ -425,7 +596,8 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
     }
     as_structure_add_section(d, ASF_TAG_BVH2, out, st.out_count, sizeof(as_bvh2_node_t));
     as_structure_add_section(d, ASF_TAG_TRI4, tris, st.tri_count, sizeof(as_tri4_t));
-    d->meta.sah_cost = as_bvh2_sah_cost(d);
+    d->meta.sah_cost = as_bvh2_sah_from_sums(args->cost_traversal, args->cost_intersection, root_area, st.inner_area,
+                                             st.leaf_area_count, st.out_count, st.tri_count);
     as_error_t err = AS_OK;
     if (d == &cb) {
         err = as_bvh2_to_own_bounds(&cb, s);

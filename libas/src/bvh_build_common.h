@@ -13,7 +13,7 @@
 #include <stdatomic.h>
 
 /* Subtrees larger than this may be built on another thread. */
-#define BVH_PARALLEL_MIN_PRIMS 16384
+#define BVH_PARALLEL_MIN_PRIMS 4096
 #define BVH_MAX_BINS 256
 
 /* 32 bytes: a triangle's (possibly clipped, SBVH) box and its source index. */
@@ -90,19 +90,38 @@ static inline double bvh_box_half_area(const bvh_box *b)
 }
 
 bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count);
-bvh_box bvh_refs_centroid_box(const bvh_ref *refs, uint32_t count);
+/* The box of lo + hi over the references: twice their centroids' box, the
+ * space in which the binned builders bin (one add per reference, no
+ * multiply). */
+bvh_box bvh_refs_centroid2_box(const bvh_ref *refs, uint32_t count);
 
 /* The best binned SAH object split (Wald 2007) of refs[0, count) whose
- * centroid box is cb: axis -1 when every centroid coincides; cost is the sum
- * of half-area x count of both sides. Ties go to the lower axis, then bin. */
+ * doubled centroid box is cb2: axis -1 when every centroid coincides; cost
+ * is the sum of half-area x count of both sides, whose boxes and counts come
+ * with it. Ties go to the lower axis, then bin. Only occupied bins are
+ * swept, so a small node costs what its references cost, not what the bins
+ * do. */
 typedef struct bvh_object_split {
     int axis;
     int bin;         /* left side: bins [0, bin] */
     double cost;
-    float cmin, scale;
+    float cmin[3], scale[3];  /* per axis: bin = (lo + hi - cmin) x scale, clamped */
+    uint32_t bin_count;
+    bvh_box left, right;
+    uint32_t left_count, right_count;
 } bvh_object_split;
-bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb, uint32_t bin_count);
-int bvh_object_split_left(const bvh_ref *r, const bvh_object_split *s, uint32_t bin_count);
+bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t bin_count);
+/* Whether r goes left: the float operations of the binning, on one axis,
+ * so the partition and the bins always agree. */
+static inline int bvh_object_split_left(const bvh_ref *r, const bvh_object_split *s)
+{
+    const int a = s->axis;
+    float f = ((r->lo[a] + r->hi[a]) - s->cmin[a]) * s->scale[a];
+    const float last = (float)(s->bin_count - 1);
+    f = f > 0.0f ? f : 0.0f;
+    f = f < last ? f : last;
+    return (int32_t)f <= s->bin;
+}
 
 /* Adds finished primitives to the progress and calls the callback (at most
  * every 1%); a false return sets b->cancelled. */
@@ -117,11 +136,27 @@ int bvh_spawn(bvh_builder *b, pthread_t *tid, void *(*fn)(void *), void *arg);
 /* For spawned work: call when the thread's function is done. */
 void bvh_thread_done(bvh_builder *b);
 
-/* In-place builders: a split function partitions refs [first, first+count)
- * and returns the first index of the right part, in (first, first+count),
- * or 0 to make a leaf. It is called only for count >= 2 below the depth cap. */
-typedef uint32_t (*bvh_split_fn)(bvh_builder *b, uint32_t first, uint32_t count, const bvh_box *node_box);
-/* Builds the whole tree over b->refs with `split`; returns the root. */
+/* A range of the builder's reference array with its bounds. */
+typedef struct bvh_range {
+    uint32_t first, count;
+    bvh_box box;   /* of the references */
+    bvh_box cbox;  /* of lo + hi (see bvh_refs_centroid2_box) */
+} bvh_range;
+/* Sets r's box and cbox from its references. */
+void bvh_range_bound(const bvh_builder *b, bvh_range *r);
+
+/* Partitions node's references in place by an object split, filling both
+ * sides with their bounds; returns the first index of the right side. */
+uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
+                              bvh_range *right);
+
+/* In-place builders: a split function partitions node's references and
+ * fills `left` and `right` (node's range in two non-empty parts, in order,
+ * with their bounds), returning 1, or returns 0 to make a leaf. It is called
+ * only for count >= 2 below the depth cap. */
+typedef int (*bvh_split_fn)(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right);
+/* Builds the whole tree over b->refs with `split` on every build thread;
+ * returns the root. */
 int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split);
 
 /* Writes the tmp tree under `root` into `s` (META, BVH2 or BVHO, TRI4) in the

@@ -46,11 +46,11 @@ static void select_kth(bvh_ref *r, uint32_t n, uint32_t k, int axis)
     }
 }
 
-static uint32_t midcut_split(bvh_builder *b, uint32_t first, uint32_t count, const bvh_box *node_box)
+static int midcut_split(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right)
 {
-    (void)node_box;
+    const uint32_t first = node->first, count = node->count;
     if (count <= b->args->max_leaf_size) return 0;
-    const bvh_box cb = bvh_refs_centroid_box(b->refs + first, count);
+    const bvh_box cb = node->cbox; /* doubled: only the longest axis matters */
     int axis = 0;
     float extent = cb.hi[0] - cb.lo[0];
     for (int k = 1; k < 3; ++k)
@@ -58,7 +58,13 @@ static uint32_t midcut_split(bvh_builder *b, uint32_t first, uint32_t count, con
     /* Coincident centroids still split by source index: the depth stays
      * logarithmic. */
     select_kth(b->refs + first, count, count / 2, axis);
-    return first + count / 2;
+    left->first = first;
+    left->count = count / 2;
+    right->first = first + count / 2;
+    right->count = count - count / 2;
+    bvh_range_bound(b, left);
+    bvh_range_bound(b, right);
+    return 1;
 }
 
 as_error_t as_bvh_build_midcut(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)

@@ -247,14 +247,14 @@ static void sides_free(sides *s)
     s->nl = s->nr = 0;
 }
 
-static int partition_object(const bvh_ref *refs, uint32_t count, const bvh_object_split *s, uint32_t nb, sides *out)
+static int partition_object(const bvh_ref *refs, uint32_t count, const bvh_object_split *s, sides *out)
 {
     out->l = malloc(sizeof(bvh_ref) * count);
     out->r = malloc(sizeof(bvh_ref) * count);
     out->nl = out->nr = 0;
     if (!out->l || !out->r) return 0;
     for (uint32_t i = 0; i < count; ++i) {
-        if (bvh_object_split_left(&refs[i], s, nb)) out->l[out->nl++] = refs[i];
+        if (bvh_object_split_left(&refs[i], s)) out->l[out->nl++] = refs[i];
         else out->r[out->nr++] = refs[i];
     }
     return 1;
@@ -350,7 +350,7 @@ static void sbvh_recursive(sbvh_ctx *ctx, int32_t node, bvh_ref *refs, uint32_t 
     const double area = bvh_box_half_area(&node_box);
     const double leaf_cost = ci * (double)count;
 
-    const bvh_box cb = bvh_refs_centroid_box(refs, count);
+    const bvh_box cb = bvh_refs_centroid2_box(refs, count);
     const bvh_object_split os = bvh_find_object_split(refs, count, &cb, nb);
     double best_cost = os.axis >= 0 ? os.cost : INFINITY;
     spatial_split ss;
@@ -361,7 +361,7 @@ static void sbvh_recursive(sbvh_ctx *ctx, int32_t node, bvh_ref *refs, uint32_t 
          * spatial split is worth a look (section 4.2). */
         bvh_box lb = bvh_box_empty(), rb = bvh_box_empty();
         for (uint32_t i = 0; i < count; ++i) {
-            if (bvh_object_split_left(&refs[i], &os, nb)) bvh_box_grow(&lb, refs[i].lo, refs[i].hi);
+            if (bvh_object_split_left(&refs[i], &os)) bvh_box_grow(&lb, refs[i].lo, refs[i].hi);
             else bvh_box_grow(&rb, refs[i].lo, refs[i].hi);
         }
         bvh_box ov;
@@ -397,7 +397,7 @@ static void sbvh_recursive(sbvh_ctx *ctx, int32_t node, bvh_ref *refs, uint32_t 
         if (!ok) sides_free(&sd);
     }
     if (!ok && os.axis >= 0) {
-        ok = partition_object(refs, count, &os, nb, &sd);
+        ok = partition_object(refs, count, &os, &sd);
         if (ok && (sd.nl == 0 || sd.nr == 0)) ok = 0;
         if (!ok) sides_free(&sd);
     }

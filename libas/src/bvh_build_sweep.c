@@ -26,7 +26,7 @@ static int key_cmp(const void *pa, const void *pb)
     return (a->id > b->id) - (a->id < b->id);
 }
 
-static uint32_t sweep_split(bvh_builder *b, uint32_t first, uint32_t count, const bvh_box *node_box)
+static uint32_t sweep_partition(bvh_builder *b, uint32_t first, uint32_t count, const bvh_box *node_box)
 {
     const float ci = b->args->cost_intersection, ct = b->args->cost_traversal;
     bvh_ref *refs = b->refs + first;
@@ -79,6 +79,19 @@ static uint32_t sweep_split(bvh_builder *b, uint32_t first, uint32_t count, cons
     free(right_area);
     free(tmp);
     return mid;
+}
+
+static int sweep_split(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right)
+{
+    const uint32_t mid = sweep_partition(b, node->first, node->count, &node->box);
+    if (mid <= node->first || mid >= node->first + node->count) return 0;
+    left->first = node->first;
+    left->count = mid - node->first;
+    right->first = mid;
+    right->count = node->first + node->count - mid;
+    bvh_range_bound(b, left);
+    bvh_range_bound(b, right);
+    return 1;
 }
 
 as_error_t as_bvh_build_sweep(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)

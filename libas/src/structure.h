@@ -142,6 +142,17 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
 
 /* SAH cost of a BVH2, from the stored layout. */
 double as_bvh2_sah_cost(const as_structure_t *s);
+/* The SAH cost from its sums: inner nodes' half areas, leaves' half area x
+ * count (root_area 0: every area counts 1). */
+double as_bvh2_sah_from_sums(double ct, double ci, double root_area, double inner_area, double leaf_area_count,
+                             uint64_t inner_count, uint64_t ref_count);
+/* Half the surface area of a box, in double; 0 for an inverted box. */
+static inline double as_half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
+{
+    const double dx = (double)hix - lox, dy = (double)hiy - loy, dz = (double)hiz - loz;
+    if (!(dx >= 0 && dy >= 0 && dz >= 0)) return 0.0;
+    return dx * dy + dy * dz + dz * dx;
+}
 as_error_t as_bvh2_validate(const as_structure_t *s, const char *name);
 /* Parts of the BVH2 validation shared by both BVH layouts (bvh2_validate.c):
  * the TRI4 triangles; one leaf (range, box, each entry in one leaf only,

@@ -1,7 +1,7 @@
 /* Build benchmark: every structure variant on every scene given, beside
  * Embree 3's builders in the same run, as the reference builder.
  *
- *   bench_build [--runs N] [--threads N] [--out FILE.md] [--commit ID] SCENE...
+ *   bench_build [--runs N] [--threads N] [--out FILE.md] [--commit ID] [--only TEXT] SCENE...
  *
  * For each variant and scene: build time (median of N runs, monotonic
  * clock), triangles per second, peak build memory (the rise of the resident
@@ -176,20 +176,21 @@ int main(int argc, char **argv)
 {
     int runs = 5;
     unsigned threads = 0;
-    const char *out = NULL, *commit = "unknown";
+    const char *out = NULL, *commit = "unknown", *only = NULL;
     int first = 1;
     for (; first < argc && argv[first][0] == '-'; ++first) {
         if (!strcmp(argv[first], "--runs") && first + 1 < argc) runs = atoi(argv[++first]);
         else if (!strcmp(argv[first], "--threads") && first + 1 < argc) threads = (unsigned)atoi(argv[++first]);
         else if (!strcmp(argv[first], "--out") && first + 1 < argc) out = argv[++first];
         else if (!strcmp(argv[first], "--commit") && first + 1 < argc) commit = argv[++first];
+        else if (!strcmp(argv[first], "--only") && first + 1 < argc) only = argv[++first];
         else {
-            fprintf(stderr, "usage: %s [--runs N] [--threads N] [--out FILE.md] [--commit ID] SCENE...\n", argv[0]);
+            fprintf(stderr, "usage: %s [--runs N] [--threads N] [--out FILE.md] [--commit ID] [--only TEXT] SCENE...\n", argv[0]);
             return 1;
         }
     }
     if (runs < 1 || runs > 64 || first >= argc) {
-        fprintf(stderr, "usage: %s [--runs N] [--threads N] [--out FILE.md] [--commit ID] SCENE...\n", argv[0]);
+        fprintf(stderr, "usage: %s [--runs N] [--threads N] [--out FILE.md] [--commit ID] [--only TEXT] SCENE...\n", argv[0]);
         return 1;
     }
     FILE *md = out ? fopen(out, "w") : NULL;
@@ -238,6 +239,10 @@ int main(int argc, char **argv)
         }
         result res[NVARIANTS];
         for (size_t v = 0; v < NVARIANTS; ++v) {
+            if (only && !strstr(variants[v].name, only)) {
+                memset(&res[v], 0, sizeof res[v]);
+                continue;
+            }
             res[v] = run_variant(mesh, &variants[v], runs, threads);
             if (res[v].ok) {
                 printf("%-24s %10.1f %10.2f %10.1f %10.2f %10.3f\n", variants[v].name, res[v].ms, mtri / (res[v].ms / 1e3),

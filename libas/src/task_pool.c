@@ -1,0 +1,101 @@
+/* See task_pool.h. */
+#include "task_pool.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct as_task_pool {
+    pthread_mutex_t lock;
+    pthread_cond_t wake;
+    size_t task_size;
+    unsigned char *stack;
+    size_t depth, capacity;
+    size_t active;          /* tasks queued or running */
+    atomic_int waiting;     /* threads asleep on `wake` */
+    as_task_fn run;
+    void *user;
+};
+
+int as_task_pool_push(as_task_pool *p, const void *task)
+{
+    pthread_mutex_lock(&p->lock);
+    if (p->depth == p->capacity) {
+        const size_t cap = p->capacity ? 2 * p->capacity : 16;
+        unsigned char *grown = realloc(p->stack, cap * p->task_size);
+        if (!grown) {
+            pthread_mutex_unlock(&p->lock);
+            return 0;
+        }
+        p->stack = grown;
+        p->capacity = cap;
+    }
+    memcpy(p->stack + p->depth * p->task_size, task, p->task_size);
+    p->depth++;
+    p->active++;
+    pthread_cond_signal(&p->wake);
+    pthread_mutex_unlock(&p->lock);
+    return 1;
+}
+
+int as_task_pool_hungry(as_task_pool *p) { return atomic_load_explicit(&p->waiting, memory_order_relaxed) > 0; }
+
+static void *worker(void *arg)
+{
+    as_task_pool *p = arg;
+    _Alignas(16) unsigned char task[AS_TASK_MAX_SIZE];
+    pthread_mutex_lock(&p->lock);
+    for (;;) {
+        while (p->depth == 0 && p->active > 0) {
+            atomic_fetch_add(&p->waiting, 1);
+            pthread_cond_wait(&p->wake, &p->lock);
+            atomic_fetch_sub(&p->waiting, 1);
+        }
+        if (p->depth == 0) break; /* nothing queued, nothing running: done */
+        p->depth--;
+        memcpy(task, p->stack + p->depth * p->task_size, p->task_size);
+        pthread_mutex_unlock(&p->lock);
+        p->run(p, task, p->user);
+        pthread_mutex_lock(&p->lock);
+        if (--p->active == 0) pthread_cond_broadcast(&p->wake);
+    }
+    pthread_mutex_unlock(&p->lock);
+    return NULL;
+}
+
+int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_task_fn run, void *user)
+{
+    if (task_size == 0 || task_size > AS_TASK_MAX_SIZE) return 0;
+    as_task_pool p;
+    memset(&p, 0, sizeof p);
+    p.task_size = task_size;
+    p.run = run;
+    p.user = user;
+    atomic_init(&p.waiting, 0);
+    if (pthread_mutex_init(&p.lock, NULL) != 0) return 0;
+    if (pthread_cond_init(&p.wake, NULL) != 0) {
+        pthread_mutex_destroy(&p.lock);
+        return 0;
+    }
+    if (!as_task_pool_push(&p, first)) {
+        pthread_cond_destroy(&p.wake);
+        pthread_mutex_destroy(&p.lock);
+        return 0;
+    }
+    if (threads < 1) threads = 1;
+    if (threads > 256) threads = 256;
+    pthread_t tids[256];
+    unsigned started = 0;
+    for (unsigned i = 1; i < threads; ++i) {
+        if (pthread_create(&tids[started], NULL, worker, &p) != 0) break; /* fewer threads, same result */
+        started++;
+    }
+    worker(&p);
+    for (unsigned i = 0; i < started; ++i) pthread_join(tids[i], NULL);
+    free(p.stack);
+    pthread_cond_destroy(&p.wake);
+    pthread_mutex_destroy(&p.lock);
+    return 1;
+}
