@@ -14,6 +14,54 @@
 #include <stdlib.h>
 #include <string.h>
 
+typedef struct init_job {
+    bvh_builder *b;
+    unsigned chunks;
+    uint32_t count[256], offset[256];
+    bvh_box box[256];
+} init_job;
+
+static void chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first, uint32_t *end)
+{
+    *first = (uint32_t)((uint64_t)total * i / n);
+    *end = (uint32_t)((uint64_t)total * (i + 1) / n);
+}
+
+static void init_count(void *user, unsigned c, unsigned n)
+{
+    init_job *job = user;
+    const as_mesh_t *mesh = job->b->mesh;
+    uint32_t first, end, k = 0;
+    chunk_range(mesh->triangle_count, c, n, &first, &end);
+    for (uint32_t i = first; i < end; ++i) k += !as_mesh_triangle_is_degenerate(mesh, i);
+    job->count[c] = k;
+}
+
+static void init_fill(void *user, unsigned c, unsigned n)
+{
+    init_job *job = user;
+    const as_mesh_t *mesh = job->b->mesh;
+    uint32_t first, end, k = job->offset[c];
+    chunk_range(mesh->triangle_count, c, n, &first, &end);
+    bvh_box box = bvh_box_empty();
+    for (uint32_t i = first; i < end; ++i) {
+        if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
+        bvh_ref *r = &job->b->refs[k++];
+        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
+        bvh_box bx = bvh_box_empty();
+        for (int v = 0; v < 3; ++v) {
+            const float *p = mesh->positions + 3 * (size_t)ix[v];
+            bvh_box_grow(&bx, p, p);
+        }
+        memcpy(r->lo, bx.lo, sizeof r->lo);
+        memcpy(r->hi, bx.hi, sizeof r->hi);
+        r->id = i;
+        r->pad = 0.0f;
+        bvh_box_grow(&box, bx.lo, bx.hi);
+    }
+    job->box[c] = box;
+}
+
 as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_build_args_t *args,
                             uint64_t node_capacity_per_ref)
 {
@@ -37,10 +85,20 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
     pthread_mutex_init(&b->progress_lock, NULL);
 
     /* Zero-area triangles can never be hit: they stay in the mesh (and keep
-     * their index) but not in the structure. */
+     * their index) but not in the structure. Counting and filling run on
+     * every build thread over contiguous chunks, so the references keep
+     * the source order. */
+    init_job job;
+    memset(&job, 0, sizeof job);
+    job.b = b;
+    job.chunks = mesh->triangle_count >= 65536 ? (unsigned)b->max_threads + 1 : 1;
+    if (job.chunks > 256) job.chunks = 256;
+    as_parallel_run(job.chunks, init_count, &job);
     uint32_t n = 0;
-    for (uint32_t i = 0; i < mesh->triangle_count; ++i)
-        if (!as_mesh_triangle_is_degenerate(mesh, i)) ++n;
+    for (unsigned c = 0; c < job.chunks; ++c) {
+        job.offset[c] = n;
+        n += job.count[c];
+    }
     b->ref_count = n;
     b->prim_total = n;
     b->refs = as_malloc(sizeof(bvh_ref) * (size_t)(n ? n : 1), "BVH primitive references");
@@ -51,23 +109,9 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
         bvh_builder_free(b);
         return as_get_error();
     }
+    as_parallel_run(job.chunks, init_fill, &job);
     b->root_box = bvh_box_empty();
-    uint32_t k = 0;
-    for (uint32_t i = 0; i < mesh->triangle_count; ++i) {
-        if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
-        bvh_ref *r = &b->refs[k++];
-        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
-        bvh_box bx = bvh_box_empty();
-        for (int v = 0; v < 3; ++v) {
-            const float *p = mesh->positions + 3 * (size_t)ix[v];
-            bvh_box_grow(&bx, p, p);
-        }
-        memcpy(r->lo, bx.lo, sizeof r->lo);
-        memcpy(r->hi, bx.hi, sizeof r->hi);
-        r->id = i;
-        r->pad = 0.0f;
-        bvh_box_grow(&b->root_box, bx.lo, bx.hi);
-    }
+    for (unsigned c = 0; c < job.chunks; ++c) bvh_box_grow(&b->root_box, job.box[c].lo, job.box[c].hi);
     return AS_OK;
 }
 
@@ -155,6 +199,11 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
         use[axis] = extent > 0.0f;
         cmin[axis] = cb2->lo[axis];
         scale[axis] = use[axis] ? (float)nb / extent : 0.0f;
+        /* An extent so small that the scale overflows cannot be binned. */
+        if (!isfinite(scale[axis])) {
+            use[axis] = 0;
+            scale[axis] = 0.0f;
+        }
         best.cmin[axis] = cmin[axis];
         best.scale[axis] = scale[axis];
     }
@@ -277,6 +326,7 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
             if (cost < best.cost) {
                 best.axis = axis;
                 best.bin = (int)occ[j];
+                best.limit = (float)(occ[j] + 1);
                 best.cost = cost;
                 best.left = box_from_v4f(alo, ahi);
                 best.right = box_from_v4f(rlo[j + 1], rhi[j + 1]);
@@ -327,6 +377,61 @@ int bvh_spawn(bvh_builder *b, pthread_t *tid, void *(*fn)(void *), void *arg)
 
 void bvh_thread_done(bvh_builder *b) { atomic_fetch_sub(&b->live_threads, 1); }
 
+uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
+{
+    *cost = INFINITY;
+    if (count < 2 || count > BVH_SMALL_NODE) return 0;
+    v4f lo[BVH_SMALL_NODE], hi[BVH_SMALL_NODE];
+    float key[3][BVH_SMALL_NODE];
+    for (uint32_t i = 0; i < count; ++i) {
+        lo[i] = v4f_load3(refs[i].lo);
+        hi[i] = v4f_load3(refs[i].hi);
+        float c[4];
+        v4f_store(c, v4f_add(lo[i], hi[i]));
+        for (int axis = 0; axis < 3; ++axis) key[axis][i] = c[axis];
+    }
+    int best_axis = -1;
+    uint32_t best_mid = 0;
+    uint8_t best_order[BVH_SMALL_NODE];
+    for (int axis = 0; axis < 3; ++axis) {
+        /* Each reference's rank by (centroid, position): counting, without
+         * data-dependent branches. */
+        const float *k = key[axis];
+        uint8_t order[BVH_SMALL_NODE];
+        for (uint32_t i = 0; i < count; ++i) {
+            uint32_t rank = 0;
+            for (uint32_t j = 0; j < count; ++j) rank += (k[j] < k[i]) | ((k[j] == k[i]) & (j < i));
+            order[rank] = (uint8_t)i;
+        }
+        if (!(k[order[count - 1]] > k[order[0]])) continue; /* every centroid on one plane */
+        float right_area[BVH_SMALL_NODE];
+        v4f a = v4f_set1(INFINITY), z = v4f_set1(-INFINITY);
+        for (uint32_t i = count; i-- > 1;) {
+            a = v4f_min(a, lo[order[i]]);
+            z = v4f_max(z, hi[order[i]]);
+            right_area[i] = v4f_half_area(a, z);
+        }
+        a = v4f_set1(INFINITY);
+        z = v4f_set1(-INFINITY);
+        for (uint32_t i = 0; i + 1 < count; ++i) {
+            a = v4f_min(a, lo[order[i]]);
+            z = v4f_max(z, hi[order[i]]);
+            const double c = (double)v4f_half_area(a, z) * (i + 1) + (double)right_area[i + 1] * (count - i - 1);
+            if (c < *cost) {
+                *cost = c;
+                best_axis = axis;
+                best_mid = i + 1;
+                memcpy(best_order, order, sizeof order);
+            }
+        }
+    }
+    if (best_axis < 0) return 0;
+    bvh_ref tmp[BVH_SMALL_NODE];
+    for (uint32_t i = 0; i < count; ++i) tmp[i] = refs[best_order[i]];
+    memcpy(refs, tmp, sizeof(bvh_ref) * count);
+    return best_mid;
+}
+
 /* ---- the in-place recursion shared by the binned, sweep and mid-cut builders */
 
 uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
@@ -335,21 +440,22 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
     bvh_ref *refs = b->refs;
     uint32_t i = node->first, j = node->first + node->count;
     const v4f inf = v4f_set1(INFINITY), ninf = v4f_set1(-INFINITY);
-    v4f llo = inf, lhi = ninf, lclo = inf, lchi = ninf;
-    v4f rlo = inf, rhi = ninf, rclo = inf, rchi = ninf;
-    /* Hoare's partition: sequential, so the order is reproducible; the
-     * bounds of both sides come with it, so the children need no pass of
-     * their own. */
+    v4f lclo = inf, lchi = ninf, rclo = inf, rchi = ninf;
+    /* Hoare's partition: sequential, so the order is reproducible. The
+     * sides' boxes are the unions of their bins; their centroid boxes come
+     * with the partition, so the children need no pass of their own. */
     for (;;) {
         while (i < j && bvh_object_split_left(&refs[i], s)) {
-            const v4f l = v4f_load3(refs[i].lo), h = v4f_load3(refs[i].hi), c = v4f_add(l, h);
-            llo = v4f_min(llo, l); lhi = v4f_max(lhi, h); lclo = v4f_min(lclo, c); lchi = v4f_max(lchi, c);
+            const v4f c = v4f_add(v4f_load3(refs[i].lo), v4f_load3(refs[i].hi));
+            lclo = v4f_min(lclo, c);
+            lchi = v4f_max(lchi, c);
             ++i;
         }
         while (i < j && !bvh_object_split_left(&refs[j - 1], s)) {
             --j;
-            const v4f l = v4f_load3(refs[j].lo), h = v4f_load3(refs[j].hi), c = v4f_add(l, h);
-            rlo = v4f_min(rlo, l); rhi = v4f_max(rhi, h); rclo = v4f_min(rclo, c); rchi = v4f_max(rchi, c);
+            const v4f c = v4f_add(v4f_load3(refs[j].lo), v4f_load3(refs[j].hi));
+            rclo = v4f_min(rclo, c);
+            rchi = v4f_max(rchi, c);
         }
         if (i >= j) break;
         const bvh_ref t = refs[i];
@@ -360,11 +466,11 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
     }
     left->first = node->first;
     left->count = i - node->first;
-    left->box = box_from_v4f(llo, lhi);
+    left->box = s->left;
     left->cbox = box_from_v4f(lclo, lchi);
     right->first = i;
     right->count = node->first + node->count - i;
-    right->box = box_from_v4f(rlo, rhi);
+    right->box = s->right;
     right->cbox = box_from_v4f(rclo, rchi);
     return i;
 }
@@ -463,22 +569,37 @@ static void set_child_box(as_bvh2_node_t *o, int which, const bvh_box *bx)
     }
 }
 
+/* The walk only lays out the leaves' source indices; their vertices are
+ * filled in afterwards on every thread (fill_tris). */
 static int32_t emit_leaf(flatten_state *st, const bvh_tmp_node *t)
 {
     const uint32_t start = st->tri_count;
-    const as_mesh_t *mesh = st->b->mesh;
-    const float *p = mesh->positions;
-    for (uint32_t i = 0; i < t->count; ++i) {
-        const uint32_t id = t->refs[i].id;
-        const uint32_t *ix = mesh->indices + 3 * (size_t)id;
-        as_tri4_t *o = &st->tris[st->tri_count++];
-        const float *a = p + 3 * (size_t)ix[0], *bb = p + 3 * (size_t)ix[1], *c = p + 3 * (size_t)ix[2];
-        o->v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(id)};
-        o->v1 = (as_f4_t){bb[0], bb[1], bb[2], 0.0f};
-        o->v2 = (as_f4_t){c[0], c[1], c[2], 0.0f};
-    }
+    for (uint32_t i = 0; i < t->count; ++i) st->tris[st->tri_count++].v0.w = as_uint_as_float(t->refs[i].id);
     if (t->count) st->leaf_count++; /* the empty sibling of a one-leaf tree is no leaf */
     return ~(int32_t)start;
+}
+
+typedef struct fill_job {
+    const as_mesh_t *mesh;
+    as_tri4_t *tris;
+    uint32_t count;
+} fill_job;
+
+static void fill_tris(void *user, unsigned c, unsigned n)
+{
+    const fill_job *job = user;
+    const float *p = job->mesh->positions;
+    uint32_t first, end;
+    chunk_range(job->count, c, n, &first, &end);
+    for (uint32_t k = first; k < end; ++k) {
+        as_tri4_t *o = &job->tris[k];
+        const uint32_t id = as_float_as_uint(o->v0.w);
+        const uint32_t *ix = job->mesh->indices + 3 * (size_t)id;
+        const float *a = p + 3 * (size_t)ix[0], *bb = p + 3 * (size_t)ix[1], *cc = p + 3 * (size_t)ix[2];
+        o->v0 = (as_f4_t){a[0], a[1], a[2], o->v0.w};
+        o->v1 = (as_f4_t){bb[0], bb[1], bb[2], 0.0f};
+        o->v2 = (as_f4_t){cc[0], cc[1], cc[2], 0.0f};
+    }
 }
 
 static double box_area(const bvh_box *bx)
@@ -561,6 +682,8 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
                                            mesh->bounds_hi[1], mesh->bounds_lo[2], mesh->bounds_hi[2]);
     flatten_state st = {b, out, 1, tris, 0, 0, 0, 0.0, 0.0};
     flatten(&st, root, 0, 0, root_area);
+    fill_job fj = {mesh, tris, st.tri_count};
+    as_parallel_run(st.tri_count >= 65536 ? (unsigned)b->max_threads + 1 : 1, fill_tris, &fj);
     if (st.out_count != inner || st.tri_count != refs)
         return as_set_error(AS_ERROR_UNKNOWN, "BVH build bookkeeping: %llu nodes and %u references written, %llu and %llu counted",
                             (unsigned long long)st.out_count, st.tri_count, (unsigned long long)inner,

@@ -107,21 +107,30 @@ typedef struct bvh_object_split {
     double cost;
     float cmin[3], scale[3];  /* per axis: bin = (lo + hi - cmin) x scale, clamped */
     uint32_t bin_count;
+    float limit;              /* bin + 1 */
     bvh_box left, right;
     uint32_t left_count, right_count;
 } bvh_object_split;
 bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t bin_count);
 /* Whether r goes left: the float operations of the binning, on one axis,
- * so the partition and the bins always agree. */
+ * so the partition and the bins always agree. The binning truncates
+ * f = (lo + hi - cmin) x scale, clamped into [0, bins - 1], and f is never
+ * negative nor NaN there (cmin is the smallest lo + hi, scale is finite), so
+ * "bin <= s->bin" is "f < s->bin + 1": one comparison. */
 static inline int bvh_object_split_left(const bvh_ref *r, const bvh_object_split *s)
 {
     const int a = s->axis;
-    float f = ((r->lo[a] + r->hi[a]) - s->cmin[a]) * s->scale[a];
-    const float last = (float)(s->bin_count - 1);
-    f = f > 0.0f ? f : 0.0f;
-    f = f < last ? f : last;
-    return (int32_t)f <= s->bin;
+    return ((r->lo[a] + r->hi[a]) - s->cmin[a]) * s->scale[a] < s->limit;
 }
+
+/* Small nodes are split exactly: every object partition along each axis's
+ * centroid order (ties by position in refs), which costs less than setting
+ * up bins and is never worse. Returns the left count, in (0, count), with
+ * refs reordered along the best axis and *cost the sum of half-area x count
+ * of both sides; 0 when count is outside [2, BVH_SMALL_NODE] or every
+ * centroid coincides. */
+#define BVH_SMALL_NODE 8
+uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost);
 
 /* Adds finished primitives to the progress and calls the callback (at most
  * every 1%); a false return sets b->cancelled. */

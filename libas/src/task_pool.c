@@ -99,3 +99,34 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
     pthread_mutex_destroy(&p.lock);
     return 1;
 }
+
+typedef struct parallel_job {
+    void (*fn)(void *user, unsigned i, unsigned n);
+    void *user;
+    unsigned i, n;
+} parallel_job;
+
+static void *parallel_thread(void *arg)
+{
+    const parallel_job *j = arg;
+    j->fn(j->user, j->i, j->n);
+    return NULL;
+}
+
+void as_parallel_run(unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user)
+{
+    if (n < 1) n = 1;
+    if (n > 256) n = 256;
+    pthread_t tids[256];
+    parallel_job jobs[256];
+    int started[256];
+    for (unsigned i = 1; i < n; ++i) {
+        jobs[i] = (parallel_job){fn, user, i, n};
+        started[i] = pthread_create(&tids[i], NULL, parallel_thread, &jobs[i]) == 0;
+    }
+    fn(user, 0, n);
+    for (unsigned i = 1; i < n; ++i) {
+        if (started[i]) pthread_join(tids[i], NULL);
+        else fn(user, i, n);
+    }
+}

@@ -29,4 +29,10 @@ int as_task_pool_push(as_task_pool *pool, const void *task);
 /* Whether a thread is waiting for work: a hint for when to push. */
 int as_task_pool_hungry(as_task_pool *pool);
 
+/* Runs fn(user, i, n) for i in [0, n) on n threads (the caller's included)
+ * and returns when all are done; n is clamped to [1, 256]. A thread that
+ * cannot be started runs on the caller's, so fn must not wait on another
+ * index. */
+void as_parallel_run(unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user);
+
 #endif

@@ -48,8 +48,8 @@ patch "$GOOD" "$WORK/h.asf" 12 flip
 refused_by_both "header_size damaged" "$WORK/h.asf" 3 "header_size [0-9]+ at offset 12 .*\\[CORRUPT\\]"
 patch "$GOOD" "$WORK/h.asf" 16 ff
 refused_by_both "section_count damaged" "$WORK/h.asf" 3 "\\[(CORRUPT|CHECKSUM)\\]"
-patch "$GOOD" "$WORK/h.asf" 32 flip
-refused_by_both "file_size damaged" "$WORK/h.asf" 3 "file_size at offset 32 says [0-9]+ bytes, file has $SIZE \\[CORRUPT\\]"
+patch "$GOOD" "$WORK/h.asf" 32 4000000000000000
+refused_by_both "file_size says 64 bytes" "$WORK/h.asf" 3 "file_size at offset 32 says 64 bytes, file has $SIZE \\[CORRUPT\\]"
 patch "$GOOD" "$WORK/h.asf" 40 flip
 refused_by_both "table_checksum damaged" "$WORK/h.asf" 3 "section table \\(offset 64, 192 bytes\\): checksum mismatch.*\\[CHECKSUM\\]"
 patch "$GOOD" "$WORK/h.asf" 50 01
