@@ -6,7 +6,6 @@
  * whatever the thread count and however threads were scheduled (tmp node
  * indices, which do depend on scheduling, never reach the file). */
 #include "bvh_build_common.h"
-#include "simd4.h"
 #include "task_pool.h"
 
 #include <math.h>
@@ -125,15 +124,6 @@ void bvh_builder_free(bvh_builder *b)
     b->args = NULL;
 }
 
-static inline bvh_box box_from_v4f(v4f lo, v4f hi)
-{
-    float l[4], h[4];
-    v4f_store(l, lo);
-    v4f_store(h, hi);
-    const bvh_box bx = {{l[0], l[1], l[2]}, {h[0], h[1], h[2]}};
-    return bx;
-}
-
 bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count)
 {
     bvh_box bx = bvh_box_empty();
@@ -149,7 +139,7 @@ bvh_box bvh_refs_centroid2_box(const bvh_ref *refs, uint32_t count)
         lo = v4f_min(lo, c);
         hi = v4f_max(hi, c);
     }
-    return box_from_v4f(lo, hi);
+    return bvh_box_from_v4f(lo, hi);
 }
 
 void bvh_range_bound(const bvh_builder *b, bvh_range *r)
@@ -163,16 +153,8 @@ void bvh_range_bound(const bvh_builder *b, bvh_range *r)
         clo = v4f_min(clo, c);
         chi = v4f_max(chi, c);
     }
-    r->box = box_from_v4f(lo, hi);
-    r->cbox = box_from_v4f(clo, chi);
-}
-
-static inline float v4f_half_area(v4f lo, v4f hi)
-{
-    float d[4];
-    v4f_store(d, v4f_sub(hi, lo));
-    if (d[0] < 0.0f || d[1] < 0.0f || d[2] < 0.0f) return 0.0f;
-    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0];
+    r->box = bvh_box_from_v4f(lo, hi);
+    r->cbox = bvh_box_from_v4f(clo, chi);
 }
 
 /* The bin of every axis for one reference, clamped into [0, nb - 1]. The
@@ -310,7 +292,7 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
             alo = v4f_min(alo, blo[axis][occ[j]]);
             ahi = v4f_max(ahi, bhi[axis][occ[j]]);
             n += bn[axis][occ[j]];
-            right_area[j] = v4f_half_area(alo, ahi);
+            right_area[j] = v4f_box_half_area(alo, ahi);
             right_count[j] = n;
             rlo[j] = alo;
             rhi[j] = ahi;
@@ -322,14 +304,14 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
             alo = v4f_min(alo, blo[axis][occ[j]]);
             ahi = v4f_max(ahi, bhi[axis][occ[j]]);
             n += bn[axis][occ[j]];
-            const double cost = (double)v4f_half_area(alo, ahi) * n + (double)right_area[j + 1] * right_count[j + 1];
+            const double cost = (double)v4f_box_half_area(alo, ahi) * n + (double)right_area[j + 1] * right_count[j + 1];
             if (cost < best.cost) {
                 best.axis = axis;
                 best.bin = (int)occ[j];
                 best.limit = (float)(occ[j] + 1);
                 best.cost = cost;
-                best.left = box_from_v4f(alo, ahi);
-                best.right = box_from_v4f(rlo[j + 1], rhi[j + 1]);
+                best.left = bvh_box_from_v4f(alo, ahi);
+                best.right = bvh_box_from_v4f(rlo[j + 1], rhi[j + 1]);
                 best.left_count = n;
                 best.right_count = right_count[j + 1];
             }
@@ -409,14 +391,14 @@ uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
         for (uint32_t i = count; i-- > 1;) {
             a = v4f_min(a, lo[order[i]]);
             z = v4f_max(z, hi[order[i]]);
-            right_area[i] = v4f_half_area(a, z);
+            right_area[i] = v4f_box_half_area(a, z);
         }
         a = v4f_set1(INFINITY);
         z = v4f_set1(-INFINITY);
         for (uint32_t i = 0; i + 1 < count; ++i) {
             a = v4f_min(a, lo[order[i]]);
             z = v4f_max(z, hi[order[i]]);
-            const double c = (double)v4f_half_area(a, z) * (i + 1) + (double)right_area[i + 1] * (count - i - 1);
+            const double c = (double)v4f_box_half_area(a, z) * (i + 1) + (double)right_area[i + 1] * (count - i - 1);
             if (c < *cost) {
                 *cost = c;
                 best_axis = axis;
@@ -467,11 +449,11 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
     left->first = node->first;
     left->count = i - node->first;
     left->box = s->left;
-    left->cbox = box_from_v4f(lclo, lchi);
+    left->cbox = bvh_box_from_v4f(lclo, lchi);
     right->first = i;
     right->count = node->first + node->count - i;
     right->box = s->right;
-    right->cbox = box_from_v4f(rclo, rchi);
+    right->cbox = bvh_box_from_v4f(rclo, rchi);
     return i;
 }
 

@@ -8,6 +8,7 @@
 #include "structure.h"
 #include "mesh.h"
 #include "bvh2_layout.h"
+#include "simd4.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
@@ -87,6 +88,24 @@ static inline double bvh_box_half_area(const bvh_box *b)
                  dz = (double)b->hi[2] - b->lo[2];
     if (dx < 0 || dy < 0 || dz < 0) return 0.0;
     return dx * dy + dy * dz + dz * dx;
+}
+
+static inline bvh_box bvh_box_from_v4f(v4f lo, v4f hi)
+{
+    float l[4], h[4];
+    v4f_store(l, lo);
+    v4f_store(h, hi);
+    const bvh_box bx = {{l[0], l[1], l[2]}, {h[0], h[1], h[2]}};
+    return bx;
+}
+
+/* Half the surface area in float, for comparing bins; 0 when inverted. */
+static inline float v4f_box_half_area(v4f lo, v4f hi)
+{
+    float d[4];
+    v4f_store(d, v4f_sub(hi, lo));
+    if (d[0] < 0.0f || d[1] < 0.0f || d[2] < 0.0f) return 0.0f;
+    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0];
 }
 
 bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count);

@@ -21,6 +21,8 @@ static inline v4f v4f_load3(const float *p)
 {
     return _mm_and_ps(_mm_loadu_ps(p), _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1)));
 }
+/* x, y, z from three floats that may end an array, and a zero. */
+static inline v4f v4f_set3(const float *p) { return _mm_setr_ps(p[0], p[1], p[2], 0.0f); }
 static inline void v4f_store(float *p, v4f a) { _mm_storeu_ps(p, a); }
 static inline v4f v4f_set1(float x) { return _mm_set1_ps(x); }
 static inline v4f v4f_add(v4f a, v4f b) { return _mm_add_ps(a, b); }
@@ -39,6 +41,7 @@ typedef struct v4f {
 
 static inline v4f v4f_load(const float *p) { v4f r = {{p[0], p[1], p[2], p[3]}}; return r; }
 static inline v4f v4f_load3(const float *p) { v4f r = {{p[0], p[1], p[2], 0.0f}}; return r; }
+static inline v4f v4f_set3(const float *p) { v4f r = {{p[0], p[1], p[2], 0.0f}}; return r; }
 static inline void v4f_store(float *p, v4f a) { for (int i = 0; i < 4; ++i) p[i] = a.v[i]; }
 static inline v4f v4f_set1(float x) { v4f r = {{x, x, x, x}}; return r; }
 #define AS_V4F_LANES(expr) \
