@@ -85,13 +85,13 @@ AS_HD int as_ray_box(const as_ray_pre_t *r, float lox, float hix, float loy, flo
     return tn <= tf;
 }
 
-/* The sheared edge functions and distance of a triangle in double, without
- * any decision: the float test below decides hit or miss (watertight), and
- * this gives the distance and barycentrics of an accepted hit, exact where
- * float cancels (slivers, huge triangles seen from close by). Returns 0 when
- * the determinant vanishes in double too. */
-AS_HD int as_triangle_distance_double(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
-                                      double *t, double *u, double *v)
+/* The sheared edge functions of a triangle in double, and the numerator T
+ * and denominator det of its distance t = T / det, without any decision:
+ * the float test below decides hit or miss (watertight), and these give the
+ * distance and barycentrics of an accepted hit, exact where float cancels
+ * (slivers, huge triangles seen from close by). */
+AS_HD void as_triangle_sums_double(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+                                   double *T, double *det, double *V, double *W)
 {
     const double o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
@@ -103,15 +103,24 @@ AS_HD int as_triangle_distance_double(const as_ray_pre_t *r, const float *a, con
     const double Cx = AS_DSUB(AS_DSUB((double)c[kx], o[kx]), AS_DMUL(r->dsx, C_z));
     const double Cy = AS_DSUB(AS_DSUB((double)c[ky], o[ky]), AS_DMUL(r->dsy, C_z));
     const double U = AS_DSUB(AS_DMUL(Cx, By), AS_DMUL(Cy, Bx));
-    const double V = AS_DSUB(AS_DMUL(Ax, Cy), AS_DMUL(Ay, Cx));
-    const double W = AS_DSUB(AS_DMUL(Bx, Ay), AS_DMUL(By, Ax));
-    const double det = AS_DADD(AS_DADD(U, V), W);
-    if (det == 0.0) return 0;
-    const double T = AS_DADD(AS_DADD(AS_DMUL(U, AS_DMUL(r->dsz, A_z)), AS_DMUL(V, AS_DMUL(r->dsz, B_z))),
-                             AS_DMUL(W, AS_DMUL(r->dsz, C_z)));
-    *t = T / det;
-    *u = V / det;
-    *v = W / det;
+    *V = AS_DSUB(AS_DMUL(Ax, Cy), AS_DMUL(Ay, Cx));
+    *W = AS_DSUB(AS_DMUL(Bx, Ay), AS_DMUL(By, Ax));
+    *det = AS_DADD(AS_DADD(U, *V), *W);
+    *T = AS_DADD(AS_DADD(AS_DMUL(U, AS_DMUL(r->dsz, A_z)), AS_DMUL(*V, AS_DMUL(r->dsz, B_z))),
+                 AS_DMUL(*W, AS_DMUL(r->dsz, C_z)));
+}
+
+/* Whether t = T / det can lie in [tmin, tmax] (det != 0), decided without
+ * the division: the margins are far wider than the rounding of T x (1 / det)
+ * and of the products here, so no distance that the exact check after the
+ * division accepts is turned away; most candidates behind the closest hit
+ * so far are, at the cost of two multiplications. */
+AS_HD int as_distance_may_be_in(double T, double det, float tmin, float tmax)
+{
+    const double Ts = det > 0.0 ? T : -T, ds = det > 0.0 ? det : -det;
+    const double lo = AS_DMUL((double)tmin, ds), hi = AS_DMUL((double)tmax, ds);
+    if (Ts < AS_DSUB(lo, AS_DADD(fabs(lo) * 0x1p-40, 0x1p-1000))) return 0;
+    if (Ts > AS_DADD(hi, AS_DADD(fabs(hi) * 0x1p-40, 0x1p-1000))) return 0; /* false for tmax = inf */
     return 1;
 }
 
@@ -177,11 +186,15 @@ AS_HD int as_ray_triangle(const as_ray_pre_t *r, const float *a, const float *b,
     if (det == 0.0f) return 0;
     /* The ray crosses the triangle: its distance comes from double, since
      * T / det in float loses most digits on slivers and on triangles much
-     * larger than their distance. Few triangles get this far, so the cost is
-     * small. A determinant that vanishes in double means the ray is parallel
-     * to the plane after all. */
-    double td, ud, vd;
-    if (!as_triangle_distance_double(r, a, b, c, &td, &ud, &vd)) return 0;
+     * larger than their distance. A candidate beyond the closest hit so far
+     * is turned away before any division; an accepted one costs one. A
+     * determinant that vanishes in double means the ray is parallel to the
+     * plane after all. */
+    double T, detd, Vd, Wd;
+    as_triangle_sums_double(r, a, b, c, &T, &detd, &Vd, &Wd);
+    if (detd == 0.0 || !as_distance_may_be_in(T, detd, r->tmin, tmax_now)) return 0;
+    const double inv = 1.0 / detd;
+    const double td = T * inv, ud = Vd * inv, vd = Wd * inv;
     if (!(td >= (double)r->tmin && td <= (double)tmax_now)) return 0;
     *t_out = (float)td; /* rounding is monotonic: still within the float interval */
     *u_out = (float)ud;
