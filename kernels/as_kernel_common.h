@@ -8,11 +8,13 @@
 
 #ifdef __CUDACC__
 #define AS_HD __host__ __device__ __forceinline__
+#define AS_NOINLINE_HD __host__ __device__ __noinline__
 #define AS_RESTRICT __restrict__
 #else
 #include <math.h>
 #include <string.h>
 #define AS_HD static inline
+#define AS_NOINLINE_HD static inline
 #define AS_RESTRICT restrict
 #endif
 

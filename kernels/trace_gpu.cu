@@ -112,12 +112,14 @@ struct octree_traversal {
 };
 
 // One ray; STATS adds the per-ray counters (a separate instantiation, so the
-// timed kernel carries no counting code at all).
-template <class T, bool STATS>
+// timed kernel carries no counting code at all), and FLAGS, the ray flags, is
+// a constant too, so that the float intersector's kernel carries no code or
+// registers of the double one.
+template <class T, bool STATS, int FLAGS>
 __device__ __forceinline__ void trace_one(const T &trav, const device_ray *__restrict__ rays,
-                                          float4 *__restrict__ hits, size_t i, int any_hit, int ray_flags,
-                                          device_counters *counters)
+                                          float4 *__restrict__ hits, size_t i, int any_hit, device_counters *counters)
 {
+    const int ray_flags = FLAGS;
     const float4 a = __ldg(&rays[i].a), b = __ldg(&rays[i].b);
     const float org[3] = {a.x, a.y, a.z}, dir[3] = {b.x, b.y, b.z};
     as_ray_pre_t pre;
@@ -136,21 +138,21 @@ __device__ __forceinline__ void trace_one(const T &trav, const device_ray *__res
     }
 }
 
-template <class T, bool STATS>
-__global__ void kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
-                                      size_t count, int any_hit, int ray_flags, device_counters *counters)
+template <class T, bool STATS, int FLAGS>
+__global__ void __launch_bounds__(128, 8) kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+                                      size_t count, int any_hit, device_counters *counters)
 {
     const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
-    if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, ray_flags, counters);
+    if (i < count) trace_one<T, STATS, FLAGS>(trav, rays, hits, i, any_hit, counters);
 }
 
 // Persistent threads (Aila & Laine 2009): a grid that fills the GPU once;
 // each warp takes `batch` rays per atomic from a global counter, so warps
 // that finish early take more work instead of idling at the tail.
-template <class T, bool STATS>
-__global__ void kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
-                                  size_t count, int any_hit, int ray_flags, unsigned long long *next,
-                                  unsigned batch, device_counters *counters)
+template <class T, bool STATS, int FLAGS>
+__global__ void __launch_bounds__(128, 8) kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+                                  size_t count, int any_hit, unsigned long long *next, unsigned batch,
+                                  device_counters *counters)
 {
     const unsigned lane = threadIdx.x & 31u;
     for (;;) {
@@ -160,7 +162,7 @@ __global__ void kernel_persistent(const T trav, const device_ray *__restrict__ r
         if (base >= count) return;
         for (unsigned k = lane; k < batch; k += 32) {
             const size_t i = (size_t)(base + k);
-            if (i < count) trace_one<T, STATS>(trav, rays, hits, i, any_hit, ray_flags, counters);
+            if (i < count) trace_one<T, STATS, FLAGS>(trav, rays, hits, i, any_hit, counters);
         }
     }
 }
@@ -335,8 +337,8 @@ done:
 
 namespace {
 
-template <class T>
-as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+template <int FLAGS, class T>
+as_error_t launch_traversal_flags(const T &trav, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
                             as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
 {
     as_error_t err = AS_OK;
@@ -355,7 +357,7 @@ as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_
     const device_ray *r = nullptr;
     float4 *h = nullptr;
     CUDA_TRY(cudaGetDeviceProperties(&prop, 0), "cudaGetDeviceProperties");
-    CUDA_TRY(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kernel_persistent<T, false>, block, 0),
+    CUDA_TRY(cudaOccupancyMaxActiveBlocksPerMultiprocessor(&per_sm, kernel_persistent<T, false, FLAGS>, block, 0),
              "occupancy query");
     grid_persistent = (unsigned)(prop.multiProcessorCount * (per_sm > 0 ? per_sm : 1));
     CUDA_TRY(cudaEventCreate(&ev0), "cudaEventCreate");
@@ -374,11 +376,10 @@ as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_
         CUDA_TRY(cudaMemset(d_next, 0, sizeof(unsigned long long)), "cudaMemset");
         CUDA_TRY(cudaEventRecord(ev0), "cudaEventRecord");
         if (launch->persistent)
-            kernel_persistent<T, false><<<grid_persistent, block>>>(trav, r, h, count, launch->any_hit,
-                                                                     launch->ray_flags, d_next, batch, nullptr);
+            kernel_persistent<T, false, FLAGS><<<grid_persistent, block>>>(trav, r, h, count, launch->any_hit, d_next,
+                                                                            batch, nullptr);
         else
-            kernel_thread_per_ray<T, false><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, launch->ray_flags,
-                                                                  nullptr);
+            kernel_thread_per_ray<T, false, FLAGS><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, nullptr);
         CUDA_TRY(cudaGetLastError(), "kernel launch");
         CUDA_TRY(cudaEventRecord(ev1), "cudaEventRecord");
         CUDA_TRY(cudaEventSynchronize(ev1), "traversal kernel");
@@ -388,8 +389,7 @@ as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_
     }
     if (launch->collect_stats) {
         CUDA_TRY(cudaMemset(d_counters, 0, sizeof(device_counters)), "cudaMemset");
-        kernel_thread_per_ray<T, true><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, launch->ray_flags,
-                                                            d_counters);
+        kernel_thread_per_ray<T, true, FLAGS><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, d_counters);
         CUDA_TRY(cudaGetLastError(), "statistics kernel launch");
         CUDA_TRY(cudaMemcpy(&counters, d_counters, sizeof counters, cudaMemcpyDeviceToHost), "statistics download");
     }
@@ -424,6 +424,17 @@ done:
     if (ev0) cudaEventDestroy(ev0);
     if (ev1) cudaEventDestroy(ev1);
     return err;
+}
+
+// The ray flags become a template argument, so each kernel is compiled for
+// one intersector.
+template <class T>
+as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_ray_t *rays, size_t count,
+                            as_hit_t *hits, const as_gpu_launch_t *launch, as_trace_timing_t *timing)
+{
+    if (launch->ray_flags & AS_RAY_PRECISE)
+        return launch_traversal_flags<AS_RAY_PRECISE>(trav, g, rays, count, hits, launch, timing);
+    return launch_traversal_flags<0>(trav, g, rays, count, hits, launch, timing);
 }
 
 } // namespace
