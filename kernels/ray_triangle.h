@@ -14,12 +14,23 @@ typedef struct as_ray_pre {
     int kx, ky, kz;         /* kz: the dominant axis of d (Woop et al. 2013) */
     float sx, sy, sz;       /* shear constants */
     int precise;            /* the triangle test runs in double */
-    double dsx, dsy, dsz;   /* shear constants in double */
+    double dsx, dsy, dsz;   /* shear constants in double (precise only; see as_ray_shear_double) */
 } as_ray_pre_t;
 
 /* Flags of as_ray_prepare. */
 #define AS_RAY_PRECISE 1    /* watertight test in double: exact where float cancels
                                (huge triangles seen from close by, tiny ones from afar) */
+
+/* The shear constants in double: three divisions, which the precise
+ * intersector pays once per ray and the float one only when double has to
+ * decide (rarely), so they are not part of every ray's set-up. */
+AS_HD void as_ray_shear_double(const as_ray_pre_t *r, double *dsx, double *dsy, double *dsz)
+{
+    const float d[3] = {r->dx, r->dy, r->dz};
+    *dsx = (double)d[r->kx] / (double)d[r->kz];
+    *dsy = (double)d[r->ky] / (double)d[r->kz];
+    *dsz = 1.0 / (double)d[r->kz];
+}
 
 AS_HD int as_is_finite(float x) { return (as_float_as_uint(x) & 0x7f800000u) != 0x7f800000u; }
 
@@ -58,9 +69,8 @@ AS_HD int as_ray_prepare(const float org[3], float tmin, const float dir[3], flo
     r->sy = d[ky] / d[kz];
     r->sz = 1.0f / d[kz];
     r->precise = flags & AS_RAY_PRECISE;
-    r->dsx = (double)d[kx] / (double)d[kz];
-    r->dsy = (double)d[ky] / (double)d[kz];
-    r->dsz = 1.0 / (double)d[kz];
+    r->dsx = r->dsy = r->dsz = 0.0;
+    if (r->precise) as_ray_shear_double(r, &r->dsx, &r->dsy, &r->dsz);
     return 1;
 }
 
@@ -93,21 +103,23 @@ AS_HD int as_ray_box(const as_ray_pre_t *r, float lox, float hix, float loy, flo
 AS_HD void as_triangle_sums_double(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
                                    double *T, double *det, double *V, double *W)
 {
+    double dsx, dsy, dsz;
+    as_ray_shear_double(r, &dsx, &dsy, &dsz);
     const double o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
     const double A_z = AS_DSUB((double)a[kz], o[kz]), B_z = AS_DSUB((double)b[kz], o[kz]), C_z = AS_DSUB((double)c[kz], o[kz]);
-    const double Ax = AS_DSUB(AS_DSUB((double)a[kx], o[kx]), AS_DMUL(r->dsx, A_z));
-    const double Ay = AS_DSUB(AS_DSUB((double)a[ky], o[ky]), AS_DMUL(r->dsy, A_z));
-    const double Bx = AS_DSUB(AS_DSUB((double)b[kx], o[kx]), AS_DMUL(r->dsx, B_z));
-    const double By = AS_DSUB(AS_DSUB((double)b[ky], o[ky]), AS_DMUL(r->dsy, B_z));
-    const double Cx = AS_DSUB(AS_DSUB((double)c[kx], o[kx]), AS_DMUL(r->dsx, C_z));
-    const double Cy = AS_DSUB(AS_DSUB((double)c[ky], o[ky]), AS_DMUL(r->dsy, C_z));
+    const double Ax = AS_DSUB(AS_DSUB((double)a[kx], o[kx]), AS_DMUL(dsx, A_z));
+    const double Ay = AS_DSUB(AS_DSUB((double)a[ky], o[ky]), AS_DMUL(dsy, A_z));
+    const double Bx = AS_DSUB(AS_DSUB((double)b[kx], o[kx]), AS_DMUL(dsx, B_z));
+    const double By = AS_DSUB(AS_DSUB((double)b[ky], o[ky]), AS_DMUL(dsy, B_z));
+    const double Cx = AS_DSUB(AS_DSUB((double)c[kx], o[kx]), AS_DMUL(dsx, C_z));
+    const double Cy = AS_DSUB(AS_DSUB((double)c[ky], o[ky]), AS_DMUL(dsy, C_z));
     const double U = AS_DSUB(AS_DMUL(Cx, By), AS_DMUL(Cy, Bx));
     *V = AS_DSUB(AS_DMUL(Ax, Cy), AS_DMUL(Ay, Cx));
     *W = AS_DSUB(AS_DMUL(Bx, Ay), AS_DMUL(By, Ax));
     *det = AS_DADD(AS_DADD(U, *V), *W);
-    *T = AS_DADD(AS_DADD(AS_DMUL(U, AS_DMUL(r->dsz, A_z)), AS_DMUL(*V, AS_DMUL(r->dsz, B_z))),
-                 AS_DMUL(*W, AS_DMUL(r->dsz, C_z)));
+    *T = AS_DADD(AS_DADD(AS_DMUL(U, AS_DMUL(dsz, A_z)), AS_DMUL(*V, AS_DMUL(dsz, B_z))),
+                 AS_DMUL(*W, AS_DMUL(dsz, C_z)));
 }
 
 /* Whether t = T / det can lie in [tmin, tmax] (det != 0), decided without
