@@ -14,16 +14,15 @@ typedef struct as_ray_pre {
     int kx, ky, kz;         /* kz: the dominant axis of d (Woop et al. 2013) */
     float sx, sy, sz;       /* shear constants */
     int precise;            /* the triangle test runs in double */
-    double dsx, dsy, dsz;   /* shear constants in double (precise only; see as_ray_shear_double) */
+    double dsx, dsy, dsz;   /* shear constants in double */
 } as_ray_pre_t;
 
 /* Flags of as_ray_prepare. */
 #define AS_RAY_PRECISE 1    /* watertight test in double: exact where float cancels
                                (huge triangles seen from close by, tiny ones from afar) */
 
-/* The shear constants in double: three divisions, which the precise
- * intersector pays once per ray and the float one only when double has to
- * decide (rarely), so they are not part of every ray's set-up. */
+/* The shear constants in double, for the double intersector and the
+ * float one's exact distances. */
 AS_HD void as_ray_shear_double(const as_ray_pre_t *r, double *dsx, double *dsy, double *dsz)
 {
     const float d[3] = {r->dx, r->dy, r->dz};
@@ -69,8 +68,7 @@ AS_HD int as_ray_prepare(const float org[3], float tmin, const float dir[3], flo
     r->sy = d[ky] / d[kz];
     r->sz = 1.0f / d[kz];
     r->precise = flags & AS_RAY_PRECISE;
-    r->dsx = r->dsy = r->dsz = 0.0;
-    if (r->precise) as_ray_shear_double(r, &r->dsx, &r->dsy, &r->dsz);
+    as_ray_shear_double(r, &r->dsx, &r->dsy, &r->dsz);
     return 1;
 }
 
@@ -103,8 +101,7 @@ AS_HD int as_ray_box(const as_ray_pre_t *r, float lox, float hix, float loy, flo
 AS_HD void as_triangle_sums_double(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
                                    double *T, double *det, double *V, double *W)
 {
-    double dsx, dsy, dsz;
-    as_ray_shear_double(r, &dsx, &dsy, &dsz);
+    const double dsx = r->dsx, dsy = r->dsy, dsz = r->dsz;
     const double o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
     const double A_z = AS_DSUB((double)a[kz], o[kz]), B_z = AS_DSUB((double)b[kz], o[kz]), C_z = AS_DSUB((double)c[kz], o[kz]);
@@ -136,9 +133,9 @@ AS_HD int as_distance_may_be_in(double T, double det, float tmin, float tmax)
     return 1;
 }
 
-/* The exact end of the float test for a candidate it could not turn away:
- * distance and barycentrics in double, one division. Not inlined on the GPU,
- * so that its double registers do not count against the traversal loop. */
+/* The exact end of the float test for a triangle the ray crosses: distance
+ * and barycentrics in double, one division. Not inlined on the GPU, so that
+ * its double registers do not count against the traversal loop. */
 AS_NOINLINE_HD int as_triangle_accept_double(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
                                              float tmax_now, float *t_out, float *u_out, float *v_out)
 {
@@ -214,39 +211,11 @@ AS_HD int as_ray_triangle(const as_ray_pre_t *r, const float *a, const float *b,
     if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return 0;
     const float det = AS_ADD(AS_ADD(U, V), W);
     if (det == 0.0f) return 0;
-    /* The ray crosses the triangle. Its distance in float comes with a bound
-     * on its error (Pharr, Jakob & Humphreys, "Physically Based Rendering",
-     * 3rd ed., section 3.9.6; here with three times the margin). Where the
-     * bound is tight (2^-22 of t, and the edge functions' error 2^-22 of
-     * det, far below the verification's tie tolerance) and the interval
-     * [t - bound, t + bound] lies clearly inside or outside [tmin, tmax_now],
-     * float decides and reports; slivers, triangles much larger than their
-     * distance and near-ties go to double, which is exact where float
-     * cancels. */
-    const float Az = AS_MUL(r->sz, A_z), Bz = AS_MUL(r->sz, B_z), Cz = AS_MUL(r->sz, C_z);
-    const float T = AS_ADD(AS_ADD(AS_MUL(U, Az), AS_MUL(V, Bz)), AS_MUL(W, Cz));
-    const float inv = 1.0f / det;
-    const float tf = AS_MUL(T, inv);
-    const float g2 = 2.0f * 0x1p-24f / (1.0f - 2.0f * 0x1p-24f), g3 = 3.0f * 0x1p-24f / (1.0f - 3.0f * 0x1p-24f),
-                g5 = 5.0f * 0x1p-24f / (1.0f - 5.0f * 0x1p-24f);
-    const float max_zt = AS_MAXF(AS_MAXF(fabsf(Az), fabsf(Bz)), fabsf(Cz));
-    const float max_xt = AS_MAXF(AS_MAXF(fabsf(Ax), fabsf(Bx)), fabsf(Cx));
-    const float max_yt = AS_MAXF(AS_MAXF(fabsf(Ay), fabsf(By)), fabsf(Cy));
-    const float dz = AS_MUL(g3, max_zt), dx = AS_MUL(g5, AS_ADD(max_xt, max_zt)), dy = AS_MUL(g5, AS_ADD(max_yt, max_zt));
-    const float de = AS_MUL(2.0f, AS_ADD(AS_ADD(AS_MUL(AS_MUL(g2, max_xt), max_yt), AS_MUL(dy, max_xt)), AS_MUL(dx, max_yt)));
-    const float max_e = AS_MAXF(AS_MAXF(fabsf(U), fabsf(V)), fabsf(W));
-    const float dt = AS_ADD(AS_MUL(AS_MUL(9.0f, AS_ADD(AS_ADD(AS_MUL(AS_MUL(g3, max_e), max_zt), AS_MUL(de, max_zt)),
-                                                       AS_MUL(dz, max_e))),
-                                   fabsf(inv)),
-                            AS_MUL(4.0f * 0x1p-24f, fabsf(tf)));
-    if (AS_SUB(tf, dt) > tmax_now || AS_ADD(tf, dt) < r->tmin) return 0; /* false for NaN: double decides */
-    if (dt <= AS_MUL(0x1p-22f, fabsf(tf)) && AS_MUL(de, fabsf(inv)) <= 0x1p-22f && AS_SUB(tf, dt) >= r->tmin &&
-        AS_ADD(tf, dt) <= tmax_now) {
-        *t_out = tf;
-        *u_out = AS_MUL(V, inv);
-        *v_out = AS_MUL(W, inv);
-        return 1;
-    }
+    /* The ray crosses the triangle: its distance comes from double, since
+     * T / det in float loses most digits on slivers and on triangles much
+     * larger than their distance. (A float distance with an error bound
+     * that lets float decide most candidates measured slower on the H100:
+     * the bound's registers made the traversal loop spill.) */
     return as_triangle_accept_double(r, a, b, c, tmax_now, t_out, u_out, v_out);
 }
 #endif
