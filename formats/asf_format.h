@@ -32,6 +32,7 @@
 #define ASF_TAG_KDN8 ASF_TAG('K', 'D', 'N', '8') /* as_kd_node_t[], KD nodes (8 bytes) */
 #define ASF_TAG_KDRP ASF_TAG('K', 'D', 'R', 'P') /* as_kd_ropes_t[], six ropes per KD leaf */
 #define ASF_TAG_KDLB ASF_TAG('K', 'D', 'L', 'B') /* as_kd_leaf_box_t[], KD leaf boxes */
+#define ASF_TAG_BREC ASF_TAG('B', 'R', 'E', 'C') /* as_build_record_t, optional */
 
 /* Section flags. */
 #define ASF_SECTION_REQUIRED 0x1u   /* a reader that does not know the tag must refuse */
@@ -87,7 +88,7 @@ typedef struct as_meta {
     uint32_t max_depth;
     uint32_t reserved0;            /* must be zero */
     double sah_cost;
-    uint64_t reserved1;            /* must be zero (build time is not stored: files are reproducible) */
+    uint64_t reserved1;            /* must be zero (the build time is in BREC, which is optional) */
     uint64_t empty_leaf_count;     /* leaves (grid: cells) without triangles */
     uint64_t reference_count;      /* triangle references in all leaves */
     uint32_t max_depth_limit;      /* build parameter: depth cap */
@@ -97,6 +98,17 @@ typedef struct as_meta {
     uint8_t reserved[80];          /* must be zero */
 } as_meta_t;
 
+/* The BREC section: how long the build took, one 32-byte record. Optional:
+ * a file without it is as valid, and leaving it out keeps two builds of the
+ * same mesh byte-identical. */
+typedef struct as_build_record {
+    double build_ms;               /* wall time of the build, finite, >= 0 */
+    uint32_t thread_count;         /* build threads the builder could use */
+    uint32_t core_count;           /* cores of the machine that built it */
+    uint64_t reserved[2];          /* must be zero */
+} as_build_record_t;
+
+_Static_assert(sizeof(as_build_record_t) == 32, "as_build_record_t is 32 bytes");
 _Static_assert(sizeof(asf_header_t) == 64, "asf_header_t is 64 bytes");
 _Static_assert(sizeof(asf_section_entry_t) == 64, "asf_section_entry_t is 64 bytes");
 _Static_assert(sizeof(as_meta_t) == 256, "as_meta_t is 256 bytes");

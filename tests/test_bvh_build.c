@@ -28,8 +28,54 @@ static void save_with_threads(const as_mesh_t *m, unsigned threads, const char *
     args.thread_count = threads;
     as_structure_t *s = as_structure_build(m, &args);
     CHECK(s != NULL);
-    CHECK_EQ_INT(as_structure_save(s, path, NULL), AS_OK);
+    CHECK_EQ_INT(test_save_reproducible(s, path), AS_OK);
     as_structure_release(s);
+}
+
+static void build_time_is_recorded_in_the_file_unless_left_out(void)
+{
+    as_mesh_t *m = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
+    CHECK(m != NULL);
+    if (!m) return;
+    as_build_args_t args;
+    as_build_args_default(&args);
+    args.thread_count = 2;
+    as_structure_t *s = as_structure_build(m, &args);
+    CHECK(s != NULL);
+    as_structure_stats_t built;
+    CHECK_EQ_INT(as_structure_get_stats(s, &built), AS_OK);
+    CHECK(built.build_ms > 0.0);
+    CHECK_EQ_INT(built.build_threads, 2);
+    char with[512], without[512];
+    snprintf(with, sizeof with, "%s/record.asf", tmpdir);
+    snprintf(without, sizeof without, "%s/no-record.asf", tmpdir);
+    CHECK_EQ_INT(as_structure_save(s, with, NULL), AS_OK);
+    as_save_args_t save;
+    as_save_args_default(&save);
+    save.omit_build_record = true;
+    CHECK_EQ_INT(as_structure_save(s, without, &save), AS_OK);
+    as_structure_release(s);
+
+    as_structure_t *a = as_structure_load(with, NULL), *b = as_structure_load(without, NULL);
+    CHECK(a != NULL && b != NULL);
+    if (a && b) {
+        as_structure_stats_t sa, sb;
+        CHECK_EQ_INT(as_structure_get_stats(a, &sa), AS_OK);
+        CHECK_EQ_INT(as_structure_get_stats(b, &sb), AS_OK);
+        /* The loaded record is the build's, to the bit. */
+        CHECK(memcmp(&sa.build_ms, &built.build_ms, sizeof sa.build_ms) == 0);
+        CHECK_EQ_INT(sa.build_threads, 2);
+        CHECK(sa.build_cores >= 1);
+        CHECK(sb.build_ms == 0.0 && sb.build_threads == 0);
+        /* One section more, and the structure's own sections unchanged. */
+        CHECK_EQ_INT(as_structure_section_count(a), as_structure_section_count(b) + 1);
+        CHECK(sa.sah_cost == sb.sah_cost && sa.node_count == sb.node_count);
+    }
+    as_structure_release(a);
+    as_structure_release(b);
+    unlink(with);
+    unlink(without);
+    as_mesh_release(m);
 }
 
 static void build_is_byte_identical_whatever_the_thread_count(void)
@@ -190,6 +236,7 @@ int main(void)
     snprintf(tmpdir, sizeof tmpdir, "/tmp/as_test_bvh_XXXXXX");
     if (!mkdtemp(tmpdir)) return 1;
     RUN_TEST(build_is_byte_identical_whatever_the_thread_count);
+    RUN_TEST(build_time_is_recorded_in_the_file_unless_left_out);
     RUN_TEST(duplicates_stay_within_the_depth_cap_and_hit_the_lowest_index);
     RUN_TEST(a_single_triangle_and_an_all_degenerate_mesh_build_and_trace);
     RUN_TEST(progress_callback_returning_false_cancels_the_build);

@@ -71,7 +71,7 @@ static as_mesh_t *soup(uint64_t seed, uint32_t n, float size)
 static void save(const as_structure_t *s, const char *path)
 {
     CHECK(s != NULL);
-    if (s) CHECK_EQ_INT(as_structure_save(s, path, NULL), AS_OK);
+    if (s) CHECK_EQ_INT(test_save_reproducible(s, path), AS_OK);
 }
 
 static void build_is_byte_identical_for_1_2_3_threads(void)

@@ -116,7 +116,7 @@ static void build_is_byte_identical_for_1_2_and_3_threads(void)
             if (!s) continue;
             char path[512];
             snprintf(path, sizeof path, "%s/threads%u.asf", tmpdir, threads[t]);
-            CHECK_EQ_INT(as_structure_save(s, path, NULL), AS_OK);
+            CHECK_EQ_INT(test_save_reproducible(s, path), AS_OK);
             as_structure_release(s);
             unsigned char *data = NULL;
             size_t size = 0;

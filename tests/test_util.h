@@ -30,6 +30,16 @@ static int test_failures;
 /* Path of a scene in ../shared/scenes (AS_SCENES_DIR), or NULL when it is
  * absent: then the caller skips, except under CI=true, where a missing scene
  * is a failure (test_scene_or_skip exits accordingly). */
+/* Saves without the build record (BREC), whose build time differs from run
+ * to run: what a test compares byte for byte. */
+static inline as_error_t test_save_reproducible(const as_structure_t *s, const char *path)
+{
+    as_save_args_t args;
+    as_save_args_default(&args);
+    args.omit_build_record = true;
+    return as_structure_save(s, path, &args);
+}
+
 static inline const char *test_scene_or_exit(const char *name, char *buf, size_t len)
 {
 #ifdef AS_SCENES_DIR

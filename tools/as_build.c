@@ -31,6 +31,8 @@ static void usage(void)
            "      --cost-intersection X SAH cost of a triangle test (default 1)\n"
            "      --threads N           build threads (default: every core)\n"
            "      --compress[=LEVEL]    zstd-compress every section (default level 9)\n"
+           "      --no-build-record     leave the build time out of the file, so that two\n"
+           "                            builds of one mesh give byte-identical files\n"
            "  -q, --quiet               no summary\n"
            "  -h, --help                this help\n"
            "  -V, --version             the version\n\n"
@@ -41,7 +43,7 @@ static void usage(void)
 
 int main(int argc, char **argv)
 {
-    enum { OPT_STRUCTURE = 256, OPT_BUILDER, OPT_LEAF, OPT_BINS, OPT_CT, OPT_CI, OPT_THREADS, OPT_COMPRESS,
+    enum { OPT_STRUCTURE = 256, OPT_BUILDER, OPT_LEAF, OPT_BINS, OPT_CT, OPT_CI, OPT_THREADS, OPT_COMPRESS, OPT_NO_BUILD_RECORD,
            OPT_LAYOUT, OPT_MAX_DEPTH, OPT_LAMBDA, OPT_BUDGET };
     static const struct option opts[] = {
         {"output", required_argument, 0, 'o'},
@@ -53,6 +55,7 @@ int main(int argc, char **argv)
         {"cost-intersection", required_argument, 0, OPT_CI},
         {"threads", required_argument, 0, OPT_THREADS},
         {"compress", optional_argument, 0, OPT_COMPRESS},
+        {"no-build-record", no_argument, 0, OPT_NO_BUILD_RECORD},
         {"layout", required_argument, 0, OPT_LAYOUT},
         {"max-depth", required_argument, 0, OPT_MAX_DEPTH},
         {"lambda", required_argument, 0, OPT_LAMBDA},
@@ -116,6 +119,7 @@ int main(int argc, char **argv)
             if (optarg && (!tool_parse_u32(optarg, &u) || u < 1 || u > 22)) return tool_usage_error(TOOL, "--compress level must be 1..22, got '%s'", optarg);
             if (optarg) save.compression_level = (int)u;
             break;
+        case OPT_NO_BUILD_RECORD: save.omit_build_record = true; break;
         case 'q': quiet = 1; break;
         case 'h': usage(); return EXIT_OK;
         case 'V': tool_print_version(TOOL); return EXIT_OK;

@@ -124,9 +124,15 @@ int main(int argc, char **argv)
         tool_print_json_string(st.writer);
         printf(",\n  \"writer_version\": %u,\n", st.writer_version);
         printf("  \"build\": {\"builder\": \"%s\", \"max_leaf_size\": %u, \"bins\": %u, \"cost_traversal\": %g, "
-               "\"cost_intersection\": %g},\n",
+               "\"cost_intersection\": %g",
                builder_name(st.builder), st.max_leaf_size, st.bin_count, (double)st.cost_traversal,
                (double)st.cost_intersection);
+        if (st.build_threads)
+            printf(", \"build_ms\": %.3f, \"threads\": %u, \"cores\": %u", st.build_ms, st.build_threads,
+                   st.build_cores);
+        else
+            printf(", \"build_ms\": null");
+        printf("},\n");
         printf("  \"source_hash\": \"%016llx\",\n", (unsigned long long)st.source_hash);
         printf("  \"bounds\": [[%g, %g, %g], [%g, %g, %g]],\n", (double)st.bounds_lo[0], (double)st.bounds_lo[1],
                (double)st.bounds_lo[2], (double)st.bounds_hi[0], (double)st.bounds_hi[1], (double)st.bounds_hi[2]);
@@ -171,6 +177,11 @@ int main(int argc, char **argv)
                (double)(st.cost_traversal / st.cost_intersection), (double)st.cost_traversal,
                (double)st.cost_intersection);
         printf("build:       %s, leaf size %u, bins %u\n", builder_name(st.builder), st.max_leaf_size, st.bin_count);
+        if (st.build_threads)
+            printf("build time:  %.1f ms on %u threads (%u cores), as recorded in the file\n", st.build_ms,
+                   st.build_threads, st.build_cores);
+        else
+            printf("build time:  not recorded in the file\n");
         printf("source hash: %016llx\n", (unsigned long long)st.source_hash);
         printf("bounds:      (%g, %g, %g) - (%g, %g, %g)\n", (double)st.bounds_lo[0], (double)st.bounds_lo[1],
                (double)st.bounds_lo[2], (double)st.bounds_hi[0], (double)st.bounds_hi[1], (double)st.bounds_hi[2]);

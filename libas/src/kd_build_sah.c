@@ -38,15 +38,26 @@ static float key_float(uint32_t k)
 
 /* Sorts event keys (34 significant bits): LSD radix sort, linear in the
  * count, so a node costs O(n) and the build O(N log N); short lists use
- * insertion sort. `tmp` has room for m keys. */
-static void radix_pass(const uint64_t *src, uint64_t *dst, size_t m, int shift, int bits, size_t *count)
+ * insertion sort. One read pass makes every digit's histogram, and a digit
+ * that all keys share (the high bits of positions inside one node's box
+ * mostly are) costs no pass. `tmp` has room for m keys. */
+static void radix_sort_digits(uint64_t *ev, uint64_t *tmp, size_t m, int bits, int passes, size_t *count)
 {
     const size_t buckets = (size_t)1 << bits, mask = buckets - 1;
-    memset(count, 0, sizeof(size_t) * buckets);
-    for (size_t i = 0; i < m; ++i) count[(src[i] >> shift) & mask]++;
-    size_t sum = 0;
-    for (size_t b = 0; b < buckets; ++b) { const size_t c = count[b]; count[b] = sum; sum += c; }
-    for (size_t i = 0; i < m; ++i) dst[count[(src[i] >> shift) & mask]++] = src[i];
+    memset(count, 0, sizeof(size_t) * buckets * (size_t)passes);
+    for (size_t i = 0; i < m; ++i)
+        for (int pass = 0; pass < passes; ++pass) count[(size_t)pass * buckets + ((ev[i] >> (bits * pass)) & mask)]++;
+    uint64_t *src = ev, *dst = tmp;
+    for (int pass = 0; pass < passes; ++pass) {
+        size_t *c = count + (size_t)pass * buckets;
+        const int shift = bits * pass;
+        if (c[(src[0] >> shift) & mask] == m) continue; /* one bucket: order kept */
+        size_t sum = 0;
+        for (size_t k = 0; k < buckets; ++k) { const size_t n = c[k]; c[k] = sum; sum += n; }
+        for (size_t i = 0; i < m; ++i) dst[c[(src[i] >> shift) & mask]++] = src[i];
+        uint64_t *t = src; src = dst; dst = t;
+    }
+    if (src != ev) memcpy(ev, src, sizeof(uint64_t) * m);
 }
 
 static void sort_events(uint64_t *ev, uint64_t *tmp, size_t m)
@@ -60,16 +71,11 @@ static void sort_events(uint64_t *ev, uint64_t *tmp, size_t m)
         }
         return;
     }
-    size_t count[4096];
-    /* 3 passes of 12 bits for long lists, 5 of 8 bits (cheaper to clear)
-     * for short ones; both cover the 34 bits of a key. */
-    const int bits = m >= 4096 ? 12 : 8, passes = m >= 4096 ? 3 : 5;
-    uint64_t *src = ev, *dst = tmp;
-    for (int pass = 0; pass < passes; ++pass) {
-        radix_pass(src, dst, m, bits * pass, bits, count);
-        uint64_t *t = src; src = dst; dst = t;
-    }
-    if (src != ev) memcpy(ev, src, sizeof(uint64_t) * m);
+    /* 5 digits of 7 bits for short lists (small histograms to clear), 3 of
+     * 12 bits for long ones; both cover the 34 bits of a key. */
+    static _Thread_local size_t count[3 << 12];
+    if (m < 8192) radix_sort_digits(ev, tmp, m, 7, 5, count);
+    else radix_sort_digits(ev, tmp, m, 12, 3, count);
 }
 
 static double half_area(const float b[6])
@@ -107,9 +113,13 @@ static int sah_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box
         }
         sort_events(ev, tmp, m);
         uint32_t s_lt = 0, e_lt = 0, p_lt = 0;
-        float lbox[6], rbox[6];
-        memcpy(lbox, box, sizeof lbox);
-        memcpy(rbox, box, sizeof rbox);
+        /* A side's half area is linear in the plane's position: the face
+         * across the axis plus the perimeter of that face times the side's
+         * length along it. */
+        const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+        const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
+        const double face = e1 * e2 / area, rim = (e1 + e2) / area;
+        const double lo = box[axis], hi = box[axis + 3];
         for (size_t i = 0; i < m;) {
             const uint32_t key = (uint32_t)(ev[i] >> 2);
             uint32_t s_eq = 0, e_eq = 0, p_eq = 0;
@@ -122,9 +132,7 @@ static int sah_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box
             }
             const float pos = key_float(key);
             if (pos > box[axis] && pos < box[axis + 3]) {
-                lbox[axis + 3] = pos;
-                rbox[axis] = pos;
-                const double al = half_area(lbox) / area, ar = half_area(rbox) / area;
+                const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
                 const uint32_t nl0 = s_lt + p_lt, nr0 = (np_total - e_lt - e_eq) + (p_total - p_lt - p_eq);
                 for (int side = 1; side >= 0; --side) {
                     const uint32_t nl = nl0 + (side ? p_eq : 0), nr = nr0 + (side ? 0 : p_eq);

@@ -165,6 +165,13 @@ as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t 
     } else {
         if (args.layout == AS_LAYOUT_DEFAULT) args.layout = (as_layout_t)b->default_layout;
         err = b->build(mesh, &args, s);
+        if (err == AS_OK) {
+            memset(&s->record, 0, sizeof s->record);
+            s->record.build_ms = s->build_ms;
+            s->record.thread_count = as_thread_count(args.thread_count);
+            s->record.core_count = as_thread_count(0);
+            s->has_record = 1;
+        }
     }
     if (err != AS_OK) {
         as_structure_release(s);
@@ -191,7 +198,7 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
     AS_ARGS_FROM_CALLER(as_save_args_t, args, user_args, as_save_args_default);
     if (args.compression_level < 0 || args.compression_level > 22)
         return as_set_error(AS_ERROR_INVALID_ARGUMENT, "compression level %d is outside 0..22", args.compression_level);
-    asf_section_desc_t desc[AS_MAX_SECTIONS + 1];
+    asf_section_desc_t desc[AS_MAX_SECTIONS + 2];
     uint32_t n = 0;
     desc[n++] = (asf_section_desc_t){ASF_TAG_META, ASF_SECTION_REQUIRED, &s->meta, sizeof s->meta, 1,
                                      sizeof s->meta, args.compression_level};
@@ -200,6 +207,9 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
         desc[n++] = (asf_section_desc_t){sec->tag, sec->flags & ASF_SECTION_REQUIRED, sec->data, sec->bytes,
                                          sec->count, sec->stride, args.compression_level};
     }
+    if (s->has_record && !args.omit_build_record)
+        desc[n++] = (asf_section_desc_t){ASF_TAG_BREC, 0, &s->record, sizeof s->record, 1, sizeof s->record,
+                                         args.compression_level};
     return asf_write(path, desc, n);
 }
 
@@ -231,9 +241,31 @@ static uint32_t known_tags(uint32_t *tags, uint32_t capacity)
 {
     uint32_t n = 0;
     tags[n++] = ASF_TAG_META;
+    tags[n++] = ASF_TAG_BREC;
     for (size_t i = 0; i < sizeof layouts / sizeof layouts[0]; ++i)
         for (uint32_t k = 0; k < layouts[i]->section_count && n < capacity; ++k) tags[n++] = layouts[i]->sections[k].tag;
     return n;
+}
+
+/* The optional build record: absent is fine, damaged is not. */
+static as_error_t adopt_build_record(as_structure_t *s, const char *name)
+{
+    const int i = asf_find_section(s->file, ASF_TAG_BREC);
+    if (i < 0) return AS_OK;
+    const asf_section_entry_t *e = asf_section_entry(s->file, (uint32_t)i);
+    if (e->raw_size != sizeof(as_build_record_t) || e->element_count != 1)
+        return as_set_error(AS_ERROR_CORRUPT, "%s: BREC section (offset %llu) is %llu bytes in %llu elements, expected "
+                            "one of %zu", name, (unsigned long long)e->offset, (unsigned long long)e->raw_size,
+                            (unsigned long long)e->element_count, sizeof(as_build_record_t));
+    as_build_record_t r;
+    memcpy(&r, asf_section_data(s->file, (uint32_t)i), sizeof r);
+    if (!(r.build_ms >= 0.0) || !isfinite(r.build_ms) || r.reserved[0] || r.reserved[1])
+        return as_set_error(AS_ERROR_CORRUPT, "%s: BREC section (offset %llu): build time %g ms is not a finite "
+                            "non-negative number, or reserved fields are set", name, (unsigned long long)e->offset,
+                            r.build_ms);
+    s->record = r;
+    s->has_record = 1;
+    return AS_OK;
 }
 
 /* Checks that the sections a kind needs are there with the right strides,
@@ -292,7 +324,7 @@ static as_error_t adopt_sections(as_structure_t *s, const char *name)
         sec->stride = e->stride;
         sec->file_index = i;
     }
-    return AS_OK;
+    return adopt_build_record(s, name);
 }
 
 static as_structure_t *finish_load(asf_file_t *f, const char *name)
@@ -349,6 +381,9 @@ as_structure_t *as_structure_convert(const as_structure_t *s, as_layout_t layout
         as_structure_release(d);
         return NULL;
     }
+    /* The tree is the one that build made: its record goes along. */
+    d->record = s->record;
+    d->has_record = s->has_record;
     return d;
 }
 
@@ -374,7 +409,11 @@ as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t 
     st->cost_traversal = s->meta.cost_traversal;
     st->cost_intersection = s->meta.cost_intersection;
     st->triangle_count = s->meta.triangle_count;
-    st->build_ms = s->build_ms;
+    if (s->has_record) {
+        st->build_ms = s->record.build_ms;
+        st->build_threads = s->record.thread_count;
+        st->build_cores = s->record.core_count;
+    }
     st->source_hash = s->meta.source_hash;
     memcpy(st->bounds_lo, s->meta.bounds_lo, sizeof st->bounds_lo);
     memcpy(st->bounds_hi, s->meta.bounds_hi, sizeof st->bounds_hi);
@@ -408,6 +447,7 @@ const struct as_tri4 **as_structure_triangles_by_prim(const as_structure_t *s)
 static const char *section_purpose(const as_structure_t *s, uint32_t tag)
 {
     if (tag == ASF_TAG_META) return "writer, structure kind, layout and build parameters";
+    if (tag == ASF_TAG_BREC) return "build time and threads, as the builder recorded them (optional)";
     const as_layout_ops_t *ops = as_structure_ops(s);
     for (uint32_t i = 0; i < ops->section_count; ++i)
         if (ops->sections[i].tag == tag) return ops->sections[i].purpose;

@@ -26,6 +26,8 @@ struct as_structure {
     asf_file_t *file;             /* when loaded */
     struct as_gpu_resident *gpu;  /* the sections on the GPU, after the first GPU use */
     double build_ms;              /* when built; files do not store it */
+    as_build_record_t record;     /* BREC: set by a build or read from the file */
+    int has_record;
 };
 
 /* The section with this tag, or NULL. */

@@ -6,7 +6,8 @@
 need_python
 
 GOOD=$WORK/good.asf
-build_bunny "$GOOD"
+# The container's own checks, on a file of three sections (no build record).
+"$TOOLS/as-build" "$BUNNY" -o "$GOOD" -q --no-build-record || { echo "FAIL - as-build of $BUNNY failed, cannot go on"; exit 1; }
 "$TOOLS/as-inspect" --format json "$GOOD" >"$WORK/good.json" || { echo "FAIL - as-inspect of the intact file"; exit 1; }
 SIZE=$(wc -c <"$GOOD")
 META=$(section_offset "$WORK/good.json" META)
@@ -91,4 +92,14 @@ patch "$WORK/z.asf" "$WORK/zb.asf" $((ZBVH2 + 100)) flip
 refused_by_both "compressed BVH2 damaged" "$WORK/zb.asf" 3 "section BVH2 .*\\[(CORRUPT|CHECKSUM)\\]"
 head -c $((ZSIZE / 2)) "$WORK/z.asf" >"$WORK/zcut.asf"
 refused_by_both "compressed file truncated to half" "$WORK/zcut.asf" 3 "truncated: header says $ZSIZE bytes, file has $((ZSIZE / 2)) \\[CORRUPT\\]"
+
+# The optional build record: a NaN build time is refused even where no
+# checksum would catch it.
+build_bunny "$WORK/rec.asf"
+"$TOOLS/as-inspect" --format json "$WORK/rec.asf" >"$WORK/rec.json"
+BREC=$(section_offset "$WORK/rec.json" BREC)
+patch "$WORK/rec.asf" "$WORK/recnan.asf" "$BREC" 000000000000f87f
+expect_refused "as-inspect --no-checksum: BREC build time NaN" "$WORK/recnan.asf" 3 \
+    "BREC section \\(offset $BREC\\): build time nan ms is not a finite non-negative number.*\\[CORRUPT\\]" \
+    "$TOOLS/as-inspect" --no-checksum "$WORK/recnan.asf"
 finish

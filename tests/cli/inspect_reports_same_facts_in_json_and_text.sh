@@ -37,14 +37,15 @@ PY
 )
 expect_eq "json has every field with its type" "" "$missing"
 
-expect_eq "json section tags" "META BVH2 TRI4" "$(json_get "$J" '" ".join(s["tag"] for s in j["sections"])')"
-expect_eq "json sections uncompressed" "none none none" "$(json_get "$J" '" ".join(s["compression"] for s in j["sections"])')"
-expect_eq "json checksums verified" "verified verified verified" "$(json_get "$J" '" ".join(s["checksum_status"] for s in j["sections"])')"
+expect_eq "json section tags (BREC: the build record as-build writes)" "META BVH2 TRI4 BREC" "$(json_get "$J" '" ".join(s["tag"] for s in j["sections"])')"
+expect_eq "json sections uncompressed" "none none none none" "$(json_get "$J" '" ".join(s["compression"] for s in j["sections"])')"
+expect_eq "json checksums verified" "verified verified verified verified" "$(json_get "$J" '" ".join(s["checksum_status"] for s in j["sections"])')"
 expect_eq "json checksums are 16 hex digits" "True" "$(json_get "$J" 'all(len(s["checksum"]) == 16 and int(s["checksum"], 16) >= 0 for s in j["sections"])')"
 expect_eq "json triangles" "69451" "$(json_get "$J" 'j["triangles"]')"
 expect_eq "json structure, layout, version" "bvh bvh2-child-bounds 1" "$(json_get "$J" '"%s %s %d" % (j["structure"], j["layout"], j["layout_version"])')"
 expect_eq "json default build parameters" "sah 4 32 1 1" "$(json_get "$J" '"%s %d %d %g %g" % tuple(j["build"][k] for k in ("builder", "max_leaf_size", "bins", "cost_traversal", "cost_intersection"))')"
-expect_eq "json bytes = sum of raw section bytes" "True" "$(json_get "$J" 'j["bytes"] == sum(s["raw_bytes"] for s in j["sections"])')"
+expect_eq "json bytes = sum of raw section bytes but the build record's" "True" "$(json_get "$J" 'j["bytes"] == sum(s["raw_bytes"] for s in j["sections"] if s["tag"] != "BREC")')"
+expect_eq "json build time recorded: positive ms, threads and cores" "True" "$(json_get "$J" 'j["build"]["build_ms"] > 0 and j["build"]["threads"] >= 1 and j["build"]["cores"] >= 1')"
 expect_eq "json megabytes = bytes / 1e6" "True" "$(json_get "$J" 'abs(j["megabytes"] - j["bytes"] / 1e6) < 1e-6')"
 expect_eq "json bytes_per_triangle = bytes / triangles" "True" "$(json_get "$J" 'abs(j["bytes_per_triangle"] - j["bytes"] / j["triangles"]) < 1e-3')"
 expect_eq "json BVH2 elements = nodes" "True" "$(json_get "$J" '[s for s in j["sections"] if s["tag"] == "BVH2"][0]["elements"] == j["nodes"]')"
@@ -66,6 +67,7 @@ for tag in META BVH2 TRI4; do
     line=$(json_get "$J" '"  %s required %12d %12d %12d %6d  no    verified" % tuple([s for s in j["sections"] if s["tag"] == "'$tag'"][0][k] for k in ("tag", "offset", "stored_bytes", "raw_bytes", "stride"))')
     expect_grep "text section line for $tag" "$T" "^$(printf '%s' "$line" | sed 's/ *$//') "
 done
+expect_grep "text build time as recorded" "$T" "^build time: +$(json_get "$J" '"%.1f" % j["build"]["build_ms"]') ms on $(json_get "$J" 'j["build"]["threads"]') threads \\($(json_get "$J" 'j["build"]["cores"]') cores\\), as recorded in the file$"
 expect_grep "text triangles" "$T" "^triangles: +$(json_get "$J" 'j["triangles"]')$"
 expect_grep "text memory" "$T" "^memory: +$(json_get "$J" '"%.3f" % j["megabytes"]') MB, $(json_get "$J" '"%.1f" % j["bytes_per_triangle"]') bytes per triangle$"
 expect_grep "text nodes and leaves" "$T" "^nodes: +$(json_get "$J" 'j["nodes"]') inner, $(json_get "$J" 'j["leaves"]') leaves$"
@@ -86,5 +88,5 @@ expect_eq "json validated with --validate" "True" "$(json_get "$WORK/validate.ou
 run validate "$TOOLS/as-inspect" --validate "$ASF"
 expect_grep "text validation passed" "$WORK/validate.out" "^validation: +passed$"
 run nocheck "$TOOLS/as-inspect" --no-checksum --format json "$ASF"
-expect_eq "json checksums not checked with --no-checksum" "not checked not checked not checked" "$(json_get "$WORK/nocheck.out" '" ".join(s["checksum_status"] for s in j["sections"])')"
+expect_eq "json checksums not checked with --no-checksum" "not checked not checked not checked not checked" "$(json_get "$WORK/nocheck.out" '" ".join(s["checksum_status"] for s in j["sections"])')"
 finish

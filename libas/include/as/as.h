@@ -207,6 +207,8 @@ as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t 
 typedef struct as_save_args {
     size_t size;
     int compression_level;       /* 0: store raw; 1..22: zstd level */
+    bool omit_build_record;      /* leave out the BREC section (build time), so that
+                                    two builds of one mesh give byte-identical files */
 } as_save_args_t;
 void as_save_args_default(as_save_args_t *args);
 
@@ -265,7 +267,9 @@ typedef struct as_structure_stats {
     double average_leaf_depth;
     double sah_cost;              /* expected cost per ray, SAH with the costs above */
     uint64_t structure_bytes;     /* raw bytes of every section */
-    double build_ms;              /* for a structure just built; 0 when loaded */
+    double build_ms;              /* as recorded by the build (BREC); 0 when not recorded */
+    uint32_t build_threads;       /* build threads, as recorded; 0 when not recorded */
+    uint32_t build_cores;         /* cores of the building machine, as recorded */
     uint64_t source_hash;
     float bounds_lo[3], bounds_hi[3];
     uint64_t depth_histogram[AS_HISTOGRAM_BINS];      /* leaves per depth (last bin: deeper) */
