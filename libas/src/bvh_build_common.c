@@ -167,6 +167,63 @@ static inline void bin_of(v4f lo, v4f hi, v4f cmin, v4f scale, v4f last, int32_t
     v4f_to_i32(f, k);
 }
 
+int bvh_sweep_bins(const v4f *lo, const v4f *hi, const uint32_t *enter, const uint32_t *leave, uint32_t nb,
+                   int counts_in_occupied_only, const uint32_t *occ, uint32_t m, double best_cost, bvh_bin_sweep *out)
+{
+    if (m < 2) return 0;
+    const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY);
+    float right_area[BVH_MAX_BINS];
+    uint32_t right_count[BVH_MAX_BINS];
+    v4f rlo[BVH_MAX_BINS], rhi[BVH_MAX_BINS];
+    v4f alo = empty_lo, ahi = empty_hi;
+    uint32_t n = 0;
+    for (uint32_t j = m; j-- > 1;) {
+        const uint32_t x = occ[j];
+        alo = v4f_min(alo, lo[x]);
+        ahi = v4f_max(ahi, hi[x]);
+        /* right_count[j] is for the plane after occ[j - 1]: every right end
+         * beyond that bin, empty bins included (a spatial reference may end
+         * in a bin where its part is empty). */
+        if (counts_in_occupied_only) {
+            n += leave[x];
+        } else {
+            for (uint32_t y = occ[j - 1] + 1; y <= x; ++y) n += leave[y];
+            if (j + 1 == m)
+                for (uint32_t y = x + 1; y < nb; ++y) n += leave[y];
+        }
+        right_area[j] = v4f_box_half_area(alo, ahi);
+        right_count[j] = n;
+        rlo[j] = alo;
+        rhi[j] = ahi;
+    }
+    alo = empty_lo;
+    ahi = empty_hi;
+    n = 0;
+    int found = 0;
+    for (uint32_t j = 0; j + 1 < m; ++j) {
+        const uint32_t x = occ[j];
+        alo = v4f_min(alo, lo[x]);
+        ahi = v4f_max(ahi, hi[x]);
+        if (counts_in_occupied_only)
+            n += enter[x];
+        else
+            for (uint32_t y = j ? occ[j - 1] + 1 : 0; y <= x; ++y) n += enter[y];
+        if (n == 0 || right_count[j + 1] == 0) continue;
+        const double cost = (double)v4f_box_half_area(alo, ahi) * n + (double)right_area[j + 1] * right_count[j + 1];
+        if (cost < best_cost) {
+            best_cost = cost;
+            found = 1;
+            out->bin = x;
+            out->cost = cost;
+            out->left = bvh_box_from_v4f(alo, ahi);
+            out->right = bvh_box_from_v4f(rlo[j + 1], rhi[j + 1]);
+            out->left_count = n;
+            out->right_count = right_count[j + 1];
+        }
+    }
+    return found;
+}
+
 bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t nb)
 {
     bvh_object_split best;
@@ -282,40 +339,16 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
         for (uint32_t w = 0; w < (nb + 63) / 64; ++w)
             for (uint64_t bits = occupied[axis][w]; bits; bits &= bits - 1)
                 occ[m++] = 64 * w + (uint32_t)__builtin_ctzll(bits);
-        if (m < 2) continue;
-        float right_area[BVH_MAX_BINS];
-        uint32_t right_count[BVH_MAX_BINS];
-        v4f rlo[BVH_MAX_BINS], rhi[BVH_MAX_BINS];
-        v4f alo = empty_lo, ahi = empty_hi;
-        uint32_t n = 0;
-        for (uint32_t j = m; j-- > 1;) {
-            alo = v4f_min(alo, blo[axis][occ[j]]);
-            ahi = v4f_max(ahi, bhi[axis][occ[j]]);
-            n += bn[axis][occ[j]];
-            right_area[j] = v4f_box_half_area(alo, ahi);
-            right_count[j] = n;
-            rlo[j] = alo;
-            rhi[j] = ahi;
-        }
-        alo = empty_lo;
-        ahi = empty_hi;
-        n = 0;
-        for (uint32_t j = 0; j + 1 < m; ++j) {
-            alo = v4f_min(alo, blo[axis][occ[j]]);
-            ahi = v4f_max(ahi, bhi[axis][occ[j]]);
-            n += bn[axis][occ[j]];
-            const double cost = (double)v4f_box_half_area(alo, ahi) * n + (double)right_area[j + 1] * right_count[j + 1];
-            if (cost < best.cost) {
-                best.axis = axis;
-                best.bin = (int)occ[j];
-                best.limit = (float)(occ[j] + 1);
-                best.cost = cost;
-                best.left = bvh_box_from_v4f(alo, ahi);
-                best.right = bvh_box_from_v4f(rlo[j + 1], rhi[j + 1]);
-                best.left_count = n;
-                best.right_count = right_count[j + 1];
-            }
-        }
+        bvh_bin_sweep sw;
+        if (!bvh_sweep_bins(blo[axis], bhi[axis], bn[axis], bn[axis], nb, 1, occ, m, best.cost, &sw)) continue;
+        best.axis = axis;
+        best.bin = (int)sw.bin;
+        best.limit = (float)(sw.bin + 1);
+        best.cost = sw.cost;
+        best.left = sw.left;
+        best.right = sw.right;
+        best.left_count = sw.left_count;
+        best.right_count = sw.right_count;
     }
     return best;
 }
@@ -349,15 +382,6 @@ void bvh_make_leaf(bvh_builder *b, int32_t node, const bvh_ref *refs, uint32_t c
     bvh_report_progress(b, count);
 }
 
-int bvh_spawn(bvh_builder *b, pthread_t *tid, void *(*fn)(void *), void *arg)
-{
-    int spawned = 0;
-    if (atomic_fetch_add(&b->live_threads, 1) < b->max_threads) spawned = pthread_create(tid, NULL, fn, arg) == 0;
-    if (!spawned) atomic_fetch_sub(&b->live_threads, 1);
-    return spawned;
-}
-
-void bvh_thread_done(bvh_builder *b) { atomic_fetch_sub(&b->live_threads, 1); }
 
 uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
 {

@@ -1,5 +1,5 @@
 /* What every BVH builder shares: primitive references, the temporary tree,
- * progress and cancellation, subtree threads, and the final depth-first walk
+ * progress and cancellation, subtrees on the task pool, and the final depth-first walk
  * that writes the BVH2 child-bounds layout (and, when asked, converts it to
  * the own-bounds layout). Each builder only decides how a node splits. */
 #ifndef AS_BVH_BUILD_COMMON_H
@@ -47,7 +47,6 @@ typedef struct bvh_builder {
     bvh_tmp_node *nodes;
     atomic_uint_fast64_t node_next;
     uint64_t node_capacity;
-    atomic_int live_threads;
     int max_threads;
     atomic_uint_fast64_t prims_done;
     uint64_t prim_total;
@@ -114,6 +113,24 @@ bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count);
  * multiply). */
 bvh_box bvh_refs_centroid2_box(const bvh_ref *refs, uint32_t count);
 
+/* The best plane among one axis's bins by the SAH, sweeping only the
+ * occupied bins occ[0..m) (ascending): a plane between bins without
+ * anything in them splits like the plane after the last occupied bin on
+ * its left, and ties keep the lower bin. enter[x] counts the references
+ * whose lowest bin is x, leave[x] those whose highest bin is x (both the
+ * bin's count for object bins, which hold counts in occupied bins only:
+ * counts_in_occupied_only, and the others are not read). Returns 1 and
+ * fills `out` only for a cost below best_cost; the left side is bins
+ * [0, out->bin]. */
+typedef struct bvh_bin_sweep {
+    uint32_t bin;
+    double cost;
+    bvh_box left, right;
+    uint32_t left_count, right_count;
+} bvh_bin_sweep;
+int bvh_sweep_bins(const v4f *lo, const v4f *hi, const uint32_t *enter, const uint32_t *leave, uint32_t nb,
+                   int counts_in_occupied_only, const uint32_t *occ, uint32_t m, double best_cost, bvh_bin_sweep *out);
+
 /* The best binned SAH object split (Wald 2007) of refs[0, count) whose
  * doubled centroid box is cb2: axis -1 when every centroid coincides; cost
  * is the sum of half-area x count of both sides, whose boxes and counts come
@@ -157,12 +174,6 @@ void bvh_report_progress(bvh_builder *b, uint64_t prims);
 /* A fresh tmp node index, or -1 when the capacity is exhausted. */
 int32_t bvh_new_node(bvh_builder *b);
 void bvh_make_leaf(bvh_builder *b, int32_t node, const bvh_ref *refs, uint32_t count);
-
-/* Runs fn(arg) on a new thread when a thread slot is free; returns 1 when
- * it did (join with pthread_join), 0 when the caller must run it itself. */
-int bvh_spawn(bvh_builder *b, pthread_t *tid, void *(*fn)(void *), void *arg);
-/* For spawned work: call when the thread's function is done. */
-void bvh_thread_done(bvh_builder *b);
 
 /* A range of the builder's reference array with its bounds. */
 typedef struct bvh_range {

@@ -250,54 +250,22 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
             }
         }
     }
-    /* Sweep the occupied bins only: a plane between two bins without parts
-     * splits like the plane after the last occupied bin on its left. A
-     * reference's enter and leave bins hold parts of it, so counts follow
-     * the occupied bins too. */
+    /* A reference's enter and leave bins hold parts of it, so a plane
+     * between two bins without parts splits like the one after the last
+     * occupied bin on its left: the shared sweep over occupied bins holds. */
     for (int axis = 0; axis < 3; ++axis) {
         if (!use[axis]) continue;
         uint32_t occ[SBVH_SPATIAL_BINS], m = 0;
         for (uint32_t bits = occupied[axis]; bits; bits &= bits - 1) occ[m++] = (uint32_t)__builtin_ctz(bits);
-        if (m < 2) continue;
-        float right_area[SBVH_SPATIAL_BINS];
-        uint32_t right_count[SBVH_SPATIAL_BINS];
-        v4f rlo[SBVH_SPATIAL_BINS], rhi[SBVH_SPATIAL_BINS];
-        v4f alo = empty_lo, ahi = empty_hi;
-        uint32_t n = 0;
-        for (uint32_t j = m; j-- > 1;) {
-            const uint32_t x = occ[j];
-            alo = v4f_min(alo, blo[axis][x]);
-            ahi = v4f_max(ahi, bhi[axis][x]);
-            /* Leaves at or after this bin, down to the previous occupied
-             * bin's successor. */
-            for (uint32_t y = occ[j - 1] + 1; y <= x; ++y) n += leave[axis][y];
-            if (j + 1 == m)
-                for (uint32_t y = x + 1; y < nb; ++y) n += leave[axis][y];
-            right_area[j] = v4f_box_half_area(alo, ahi);
-            right_count[j] = n;
-            rlo[j] = alo;
-            rhi[j] = ahi;
-        }
-        alo = empty_lo;
-        ahi = empty_hi;
-        n = 0;
-        for (uint32_t j = 0; j + 1 < m; ++j) {
-            const uint32_t x = occ[j];
-            alo = v4f_min(alo, blo[axis][x]);
-            ahi = v4f_max(ahi, bhi[axis][x]);
-            for (uint32_t y = j ? occ[j - 1] + 1 : 0; y <= x; ++y) n += enter[axis][y];
-            if (n == 0 || right_count[j + 1] == 0) continue;
-            const double cost = (double)v4f_box_half_area(alo, ahi) * n + (double)right_area[j + 1] * right_count[j + 1];
-            if (cost < best.cost) {
-                best.axis = axis;
-                best.pos = planes[axis][x + 1];
-                best.cost = cost;
-                best.left = bvh_box_from_v4f(alo, ahi);
-                best.right = bvh_box_from_v4f(rlo[j + 1], rhi[j + 1]);
-                best.nl = n;
-                best.nr = right_count[j + 1];
-            }
-        }
+        bvh_bin_sweep sw;
+        if (!bvh_sweep_bins(blo[axis], bhi[axis], enter[axis], leave[axis], nb, 0, occ, m, best.cost, &sw)) continue;
+        best.axis = axis;
+        best.pos = planes[axis][sw.bin + 1];
+        best.cost = sw.cost;
+        best.left = sw.left;
+        best.right = sw.right;
+        best.nl = sw.left_count;
+        best.nr = sw.right_count;
     }
     return best;
 }
