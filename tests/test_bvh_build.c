@@ -6,19 +6,6 @@
 
 #include <stdio.h>
 
-static int read_file(const char *path, unsigned char **data, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return 0;
-    fseek(f, 0, SEEK_END);
-    *size = (size_t)ftell(f);
-    fseek(f, 0, SEEK_SET);
-    *data = malloc(*size ? *size : 1);
-    const int ok = fread(*data, 1, *size, f) == *size;
-    fclose(f);
-    return ok;
-}
-
 static char tmpdir[256];
 
 static void save_with_threads(const as_mesh_t *m, unsigned threads, const char *path)
@@ -104,7 +91,7 @@ static void build_is_byte_identical_whatever_the_thread_count(void)
             snprintf(path, sizeof path, "%s/mesh%d_threads%u.asf", tmpdir, k, threads[t]);
             save_with_threads(meshes[k], threads[t], path);
             size_t size = 0;
-            CHECK(read_file(path, &data, &size));
+            CHECK(test_read_file(path, &data, &size));
             if (!first) { first = data; first_size = size; continue; }
             CHECK_EQ_U64(size, first_size);
             CHECK(size == first_size && memcmp(data, first, size) == 0);

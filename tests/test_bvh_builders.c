@@ -19,29 +19,6 @@
 static as_build_args_t variant;
 static char tmpdir[256];
 
-static int read_file(const char *path, unsigned char **data, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return 0;
-    fseek(f, 0, SEEK_END);
-    *size = (size_t)ftell(f);
-    fseek(f, 0, SEEK_SET);
-    *data = malloc(*size ? *size : 1);
-    const int ok = fread(*data, 1, *size, f) == *size;
-    fclose(f);
-    return ok;
-}
-
-static int files_equal(const char *a, const char *b)
-{
-    unsigned char *da = NULL, *db = NULL;
-    size_t na = 0, nb = 0;
-    const int ok = read_file(a, &da, &na) && read_file(b, &db, &nb) && na == nb && memcmp(da, db, na) == 0;
-    free(da);
-    free(db);
-    return ok;
-}
-
 static as_structure_t *build(const as_mesh_t *m, unsigned threads)
 {
     as_build_args_t args = variant;
@@ -97,7 +74,7 @@ static void build_is_byte_identical_for_1_2_and_3_threads(void)
         CHECK_EQ_INT(test_save_reproducible(s, path), AS_OK);
         as_structure_release(s);
         if (t > 0) {
-            CHECK(files_equal(first, path));
+            CHECK(test_files_equal(first, path));
             unlink(path);
         }
     }
@@ -366,7 +343,7 @@ static void layouts_convert_both_ways_to_the_same_bytes_and_hits(void)
         CHECK(c != NULL);
         if (c) {
             CHECK_EQ_INT(as_structure_save(c, pc, NULL), AS_OK);
-            CHECK(files_equal(pa, pc));
+            CHECK(test_files_equal(pa, pc));
         }
         /* Both layouts: the same hits, field for field. */
         const size_t n = 20000;

@@ -27,29 +27,6 @@ static as_build_args_t kd_args(as_layout_t layout)
     return a;
 }
 
-static int read_file(const char *path, unsigned char **data, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return 0;
-    fseek(f, 0, SEEK_END);
-    *size = (size_t)ftell(f);
-    fseek(f, 0, SEEK_SET);
-    *data = malloc(*size ? *size : 1);
-    const int ok = fread(*data, 1, *size, f) == *size;
-    fclose(f);
-    return ok;
-}
-
-static int same_file(const char *a, const char *b)
-{
-    unsigned char *x = NULL, *y = NULL;
-    size_t nx = 0, ny = 0;
-    const int ok = read_file(a, &x, &nx) && read_file(b, &y, &ny) && nx == ny && memcmp(x, y, nx) == 0;
-    free(x);
-    free(y);
-    return ok;
-}
-
 static as_mesh_t *soup(uint64_t seed, uint32_t n, float size)
 {
     uint64_t st = seed;
@@ -89,8 +66,8 @@ static void build_is_byte_identical_for_1_2_3_threads(void)
             save(s, path);
             as_structure_release(s);
             if (threads == 1) { snprintf(first, sizeof first, "%s", path); continue; }
-            if (!same_file(first, path)) fprintf(stderr, "  %s: %u threads differ from 1\n", builder_name, threads);
-            CHECK(same_file(first, path));
+            if (!test_files_equal(first, path)) fprintf(stderr, "  %s: %u threads differ from 1\n", builder_name, threads);
+            CHECK(test_files_equal(first, path));
             unlink(path);
         }
         unlink(first);
@@ -318,8 +295,8 @@ static void conversion_keeps_the_tree_and_round_trips_byte_for_byte(void)
     save(ropes, pb);
     save(back, pc);
     save(built_ropes, pd);
-    CHECK(same_file(pa, pc));
-    CHECK(same_file(pb, pd));
+    CHECK(test_files_equal(pa, pc));
+    CHECK(test_files_equal(pb, pd));
     /* Converting a loaded file works the same way. */
     as_structure_t *loaded = as_structure_load(pb, NULL);
     CHECK(loaded != NULL);
@@ -327,7 +304,7 @@ static void conversion_keeps_the_tree_and_round_trips_byte_for_byte(void)
         CHECK_EQ_INT(as_structure_validate(loaded), AS_OK);
         as_structure_t *b2 = as_structure_convert(loaded, AS_LAYOUT_KD_STANDARD);
         save(b2, pc);
-        CHECK(same_file(pa, pc));
+        CHECK(test_files_equal(pa, pc));
         as_structure_release(b2);
     }
     /* The tree bytes are shared. */

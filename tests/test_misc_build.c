@@ -29,19 +29,6 @@ static void args_for(as_build_args_t *args)
     args->structure = kind;
 }
 
-static int read_file(const char *path, unsigned char **data, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return 0;
-    fseek(f, 0, SEEK_END);
-    *size = (size_t)ftell(f);
-    fseek(f, 0, SEEK_SET);
-    *data = malloc(*size ? *size : 1);
-    const int ok = fread(*data, 1, *size, f) == *size;
-    fclose(f);
-    return ok;
-}
-
 /* Triangles of about `size` around random points of the unit cube; every
  * `big_every`-th one (0: none) 30 times larger. */
 static as_mesh_t *soup_mixed(uint64_t seed, uint32_t n, float size, uint32_t big_every)
@@ -120,7 +107,7 @@ static void build_is_byte_identical_for_1_2_and_3_threads(void)
             as_structure_release(s);
             unsigned char *data = NULL;
             size_t size = 0;
-            CHECK(read_file(path, &data, &size));
+            CHECK(test_read_file(path, &data, &size));
             unlink(path);
             if (!first) { first = data; first_size = size; continue; }
             CHECK_EQ_U64(size, first_size);
@@ -328,7 +315,7 @@ static void zero_area_triangles_are_left_out(void)
         CHECK_EQ_INT(as_structure_save(s, path, NULL), AS_OK);
         unsigned char *data = NULL;
         size_t size = 0;
-        CHECK(read_file(path, &data, &size));
+        CHECK(test_read_file(path, &data, &size));
         unlink(path);
         for (uint32_t i = 0; i < as_structure_section_count(s); ++i) {
             as_structure_t *f = as_structure_load_memory(data, size, "degenerate.asf", NULL);
@@ -441,7 +428,7 @@ static void validation_rejects_damaged_files(void)
     CHECK_EQ_INT(as_structure_save(s, path, NULL), AS_OK);
     unsigned char *data = NULL;
     size_t size = 0;
-    CHECK(read_file(path, &data, &size));
+    CHECK(test_read_file(path, &data, &size));
     unlink(path);
     expect_rejected(data, size, "PRIM", prim_out_of_range, "PRIM entry out of range");
     expect_rejected(data, size, "TRIS", tris_wrong_index, "TRIS source index");

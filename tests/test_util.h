@@ -30,6 +30,31 @@ static int test_failures;
 /* Path of a scene in ../shared/scenes (AS_SCENES_DIR), or NULL when it is
  * absent: then the caller skips, except under CI=true, where a missing scene
  * is a failure (test_scene_or_skip exits accordingly). */
+/* Reads a whole file into a malloc'd buffer; 0 when it cannot. */
+static inline int test_read_file(const char *path, unsigned char **data, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return 0;
+    fseek(f, 0, SEEK_END);
+    *size = (size_t)ftell(f);
+    fseek(f, 0, SEEK_SET);
+    *data = malloc(*size ? *size : 1);
+    const int ok = fread(*data, 1, *size, f) == *size;
+    fclose(f);
+    return ok;
+}
+
+/* Whether two files hold the same bytes. */
+static inline int test_files_equal(const char *a, const char *b)
+{
+    unsigned char *x = NULL, *y = NULL;
+    size_t nx = 0, ny = 0;
+    const int ok = test_read_file(a, &x, &nx) && test_read_file(b, &y, &ny) && nx == ny && memcmp(x, y, nx) == 0;
+    free(x);
+    free(y);
+    return ok;
+}
+
 /* Saves without the build record (BREC), whose build time differs from run
  * to run: what a test compares byte for byte. */
 static inline as_error_t test_save_reproducible(const as_structure_t *s, const char *path)

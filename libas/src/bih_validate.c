@@ -111,14 +111,7 @@ as_error_t as_bih_validate(const as_structure_t *s, const char *name)
     if (err == AS_OK && refs != prim_count)
         err = as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: the leaves hold %llu references but PRIM has %llu entries", name,
                            (unsigned long long)refs, (unsigned long long)prim_count);
-    if (err == AS_OK && (s->meta.node_count != inner || s->meta.leaf_count != leaves || s->meta.empty_leaf_count != empty ||
-                         s->meta.reference_count != refs || s->meta.max_depth != max_depth))
-        err = as_set_error(AS_ERROR_INVALID_STRUCTURE,
-                           "%s: META says %llu inner nodes, %llu leaves, %llu empty, %llu references, depth %u; the tree has "
-                           "%llu, %llu, %llu, %llu, %u", name, (unsigned long long)s->meta.node_count,
-                           (unsigned long long)s->meta.leaf_count, (unsigned long long)s->meta.empty_leaf_count,
-                           (unsigned long long)s->meta.reference_count, s->meta.max_depth, (unsigned long long)inner,
-                           (unsigned long long)leaves, (unsigned long long)empty, (unsigned long long)refs, max_depth);
+    if (err == AS_OK) err = as_spatial_validate_counts(s, name, inner, leaves, empty, refs, max_depth);
 done:
     free(seen);
     free(prim_seen);

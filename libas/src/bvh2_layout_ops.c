@@ -7,8 +7,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define half_area6 as_half_area6
-
 double as_bvh2_sah_from_sums(double ct, double ci, double root_area, double inner_area, double leaf_area_count,
                              uint64_t inner_count, uint64_t ref_count)
 {
@@ -25,7 +23,7 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2);
     const as_bvh2_node_t *nodes = ns->data;
     const double ci = s->meta.cost_intersection, ct = s->meta.cost_traversal;
-    const double root_area = half_area6(s->meta.bounds_lo[0], s->meta.bounds_hi[0], s->meta.bounds_lo[1],
+    const double root_area = as_half_area6(s->meta.bounds_lo[0], s->meta.bounds_hi[0], s->meta.bounds_lo[1],
                                         s->meta.bounds_hi[1], s->meta.bounds_lo[2], s->meta.bounds_hi[2]);
     struct { int32_t node; uint32_t depth; double area; } stack[AS_BVH2_MAX_DEPTH + 2];
     int sp = 0;
@@ -40,8 +38,8 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
         const as_bvh2_node_t *n = &nodes[ni];
         inner_area += stack[sp].area;
         inner_count++;
-        const double ca[2] = {half_area6(n->xy0.x, n->xy0.y, n->xy0.z, n->xy0.w, n->z01.x, n->z01.y),
-                              half_area6(n->xy1.x, n->xy1.y, n->xy1.z, n->xy1.w, n->z01.z, n->z01.w)};
+        const double ca[2] = {as_half_area6(n->xy0.x, n->xy0.y, n->xy0.z, n->xy0.w, n->z01.x, n->z01.y),
+                              as_half_area6(n->xy1.x, n->xy1.y, n->xy1.z, n->xy1.w, n->z01.z, n->z01.w)};
         for (int k = 0; k < 2; ++k) {
             if (n->child[k] >= 0) continue;
             leaf_area_count += ca[k] * n->count[k];

@@ -7,6 +7,7 @@
  * indices, which do depend on scheduling, never reach the file). */
 #include "bvh_build_common.h"
 #include "task_pool.h"
+#include "spatial_common.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -699,21 +700,8 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
     as_structure_t cb;
     memset(&cb, 0, sizeof cb);
     as_structure_t *d = args->layout == AS_LAYOUT_BVH2_OWN_BOUNDS ? &cb : s;
-    memset(&d->meta, 0, sizeof d->meta);
-    snprintf(d->meta.writer, sizeof d->meta.writer, "libas");
-    d->meta.writer_version = AS_VERSION_NUMBER;
-    d->meta.structure_kind = AS_STRUCT_BVH;
-    d->meta.layout = AS_LAYOUT_BVH2_CHILD_BOUNDS;
-    d->meta.layout_version = AS_BVH2_LAYOUT_VERSION;
-    d->meta.builder = builder_id;
-    d->meta.max_leaf_size = args->max_leaf_size;
+    as_spatial_meta(d, mesh, args, AS_STRUCT_BVH, AS_LAYOUT_BVH2_CHILD_BOUNDS, AS_BVH2_LAYOUT_VERSION, builder_id);
     d->meta.bin_count = args->bin_count;
-    d->meta.cost_traversal = args->cost_traversal;
-    d->meta.cost_intersection = args->cost_intersection;
-    d->meta.triangle_count = mesh->triangle_count;
-    d->meta.source_hash = mesh->hash;
-    memcpy(d->meta.bounds_lo, mesh->bounds_lo, sizeof d->meta.bounds_lo);
-    memcpy(d->meta.bounds_hi, mesh->bounds_hi, sizeof d->meta.bounds_hi);
     d->meta.node_count = st.out_count;
     d->meta.leaf_count = st.leaf_count;
     d->meta.max_depth = st.max_depth;

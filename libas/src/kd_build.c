@@ -28,6 +28,7 @@
  * depth-first walk after the build. The bytes are the same for any thread
  * count. */
 #include "kd_build.h"
+#include "spatial_common.h"
 
 #include <float.h>
 #include <math.h>
@@ -403,18 +404,8 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, uint32_t
     emit(root, &e);
     free_tmp(root);
 
-    memset(&s->meta, 0, sizeof s->meta);
-    snprintf(s->meta.writer, sizeof s->meta.writer, "libas");
-    s->meta.writer_version = AS_VERSION_NUMBER;
-    s->meta.structure_kind = AS_STRUCT_KD;
-    s->meta.layout = AS_LAYOUT_KD_STANDARD;
-    s->meta.layout_version = AS_KD_LAYOUT_VERSION;
-    s->meta.builder = builder;
-    s->meta.max_leaf_size = args->max_leaf_size;
-    s->meta.cost_traversal = args->cost_traversal;
-    s->meta.cost_intersection = args->cost_intersection;
-    s->meta.triangle_count = mesh->triangle_count;
-    s->meta.source_hash = mesh->hash;
+    as_spatial_meta(s, mesh, args, AS_STRUCT_KD, AS_LAYOUT_KD_STANDARD, AS_KD_LAYOUT_VERSION, builder);
+    /* The tree's root box, which the traversal starts from. */
     memcpy(s->meta.bounds_lo, box, sizeof s->meta.bounds_lo);
     memcpy(s->meta.bounds_hi, box + 3, sizeof s->meta.bounds_hi);
     s->meta.node_count = kc.inner;

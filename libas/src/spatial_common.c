@@ -142,3 +142,17 @@ as_error_t as_spatial_validate_tris(const as_structure_t *s, const char *name, c
                                 (unsigned long long)i, prims[i], (unsigned long long)ts->count);
     return AS_OK;
 }
+
+as_error_t as_spatial_validate_counts(const as_structure_t *s, const char *name, uint64_t inner, uint64_t leaves,
+                                      uint64_t empty, uint64_t refs, uint32_t max_depth)
+{
+    if (s->meta.node_count == inner && s->meta.leaf_count == leaves && s->meta.empty_leaf_count == empty &&
+        s->meta.reference_count == refs && s->meta.max_depth == max_depth)
+        return AS_OK;
+    return as_set_error(AS_ERROR_INVALID_STRUCTURE,
+                        "%s: META says %llu inner nodes, %llu leaves, %llu empty, %llu references, depth %u; the tree has "
+                        "%llu, %llu, %llu, %llu, %u", name, (unsigned long long)s->meta.node_count,
+                        (unsigned long long)s->meta.leaf_count, (unsigned long long)s->meta.empty_leaf_count,
+                        (unsigned long long)s->meta.reference_count, s->meta.max_depth, (unsigned long long)inner,
+                        (unsigned long long)leaves, (unsigned long long)empty, (unsigned long long)refs, max_depth);
+}

@@ -39,4 +39,9 @@ double as_spatial_half_area(const float lo[3], const float hi[3]);
 as_error_t as_spatial_validate_tris(const as_structure_t *s, const char *name, const as_section_t *tris,
                                     const as_section_t *prims);
 
+/* That META's node, leaf, empty-leaf and reference counts and depth are the
+ * tree's, as a validator counted them. */
+as_error_t as_spatial_validate_counts(const as_structure_t *s, const char *name, uint64_t inner, uint64_t leaves,
+                                      uint64_t empty, uint64_t refs, uint32_t max_depth);
+
 #endif
