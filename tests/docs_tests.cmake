@@ -1,5 +1,16 @@
 # The documentation held to the tools (label docs): each man page against its
-# tool's --help and exit status, rendered by groff, its examples run.
+# tool's --help and exit status, rendered by groff, its examples run; and every
+# command the guides show, run and its output compared with the one shown
+# (tests/docs/run_doc_commands.py says how a page shows commands and output).
 add_test(NAME docs_man_pages_match_tools
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/docs/check_man_pages.py $<TARGET_FILE_DIR:as-build> ${PROJECT_SOURCE_DIR})
 set_tests_properties(docs_man_pages_match_tools PROPERTIES SKIP_RETURN_CODE 77 LABELS docs)
+
+foreach(_page getting-started guide)
+  add_test(NAME docs_${_page}_commands_print_what_it_shows
+    COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/docs/run_doc_commands.py ${PROJECT_SOURCE_DIR}/docs/${_page}.md
+            $<TARGET_FILE_DIR:as-build> ${PROJECT_SOURCE_DIR} ${AS_SCENES_DIR})
+  set_tests_properties(docs_${_page}_commands_print_what_it_shows PROPERTIES SKIP_RETURN_CODE 77 LABELS docs)
+endforeach()
+# The guide works on a scene of ../shared/scenes.
+set_tests_properties(docs_guide_commands_print_what_it_shows PROPERTIES LABELS "docs;scenes")
