@@ -33,9 +33,33 @@ static mode_t current_umask(void)
     return mask;
 }
 
+static as_atomic_fault_t injected_stage = AS_ATOMIC_FAULT_NONE;
+static int injected_errno = 0;
+
+void as_atomic_file_inject_fault(as_atomic_fault_t stage, int error_number)
+{
+    injected_stage = stage;
+    injected_errno = error_number;
+}
+
+/* True, with errno set, when the test asked this stage to fail; the fault
+ * fires once. */
+static int fault_at(as_atomic_fault_t stage)
+{
+    if (injected_stage != stage) return 0;
+    injected_stage = AS_ATOMIC_FAULT_NONE;
+    errno = injected_errno;
+    return 1;
+}
+
 static int write_all(int fd, const void *data, size_t size)
 {
     const unsigned char *p = data;
+    if (injected_stage == AS_ATOMIC_FAULT_WRITE && size > 0) {
+        const ssize_t n = write(fd, p, size / 2);
+        (void)n;
+        return !fault_at(AS_ATOMIC_FAULT_WRITE);
+    }
     while (size > 0) {
         /* Some kernels cap one write at about 2 GiB; ask for less. */
         const size_t chunk = size < ((size_t)1 << 30) ? size : ((size_t)1 << 30);
@@ -91,7 +115,7 @@ as_error_t as_atomic_write(const char *path, const as_file_part_t *parts, size_t
     memcpy(tmp, path, len);
     memcpy(tmp + len, suffix, sizeof suffix);
 
-    const int fd = mkstemp(tmp);
+    const int fd = fault_at(AS_ATOMIC_FAULT_CREATE) ? -1 : mkstemp(tmp);
     if (fd < 0) {
         const int e = errno;
         as_set_error(AS_ERROR_IO, "%s: cannot create temporary file %s: %s", path, tmp, strerror(e));
@@ -122,7 +146,7 @@ as_error_t as_atomic_write(const char *path, const as_file_part_t *parts, size_t
             e = errno;
         }
     }
-    if (!what && fsync(fd) != 0) {
+    if (!what && (fault_at(AS_ATOMIC_FAULT_SYNC) || fsync(fd) != 0)) {
         what = "cannot sync";
         e = errno;
     }
@@ -131,7 +155,7 @@ as_error_t as_atomic_write(const char *path, const as_file_part_t *parts, size_t
         what = "cannot close";
         e = errno;
     }
-    if (!what && rename(tmp, path) != 0) {
+    if (!what && (fault_at(AS_ATOMIC_FAULT_RENAME) || rename(tmp, path) != 0)) {
         e = errno;
         unlink(tmp);
         as_set_error(AS_ERROR_IO, "%s: cannot rename %s over it: %s", path, tmp, strerror(e));

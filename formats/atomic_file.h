@@ -26,6 +26,24 @@ typedef struct as_file_part {
  * fopen; an existing file keeps its mode. */
 as_error_t as_atomic_write(const char *path, const as_file_part_t *parts, size_t part_count);
 
+/* Test-only fault injection: the next as_atomic_write fails at `stage` as if
+ * the system call there had failed with `error_number` (ENOSPC, EIO, EXDEV,
+ * ...), then the fault clears itself. At AS_ATOMIC_FAULT_WRITE half of the
+ * first part is written before the failure, as a disk that fills up mid-file
+ * would. The tests run as root, where permission bits cannot make a write or
+ * a rename fail, so this is how they prove that a failure at each stage leaves
+ * the previous file intact. A function rather than an environment variable so
+ * that no user of the tools can trigger it; it is declared only in this
+ * internal header. Not thread-safe: for single-threaded tests. */
+typedef enum as_atomic_fault {
+    AS_ATOMIC_FAULT_NONE = 0,
+    AS_ATOMIC_FAULT_CREATE,   /* mkstemp of the temporary file */
+    AS_ATOMIC_FAULT_WRITE,    /* write(2), after half of the first part */
+    AS_ATOMIC_FAULT_SYNC,     /* fsync(2) of the temporary file */
+    AS_ATOMIC_FAULT_RENAME    /* rename(2) over the target */
+} as_atomic_fault_t;
+void as_atomic_file_inject_fault(as_atomic_fault_t stage, int error_number);
+
 /* A read-only private mapping of a whole file. An empty file maps to
  * data == NULL, size == 0 (mmap refuses zero lengths). */
 typedef struct as_file_map {
