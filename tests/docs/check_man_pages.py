@@ -13,6 +13,7 @@ For every tool (as-build, as-inspect, as-convert, as-trace, as-study):
 - EXIT STATUS lists the status the tool really gives for an unknown option,
   as a usage error, and, for the four C tools, the same codes as --help;
 - groff renders the page without a warning (`groff -man -ww -z`);
+- man/CMakeLists.txt installs the page;
 - every `$ ` line of EXAMPLES runs and exits 0, in one scratch directory
   holding a copy of the bundled bunny (scenes/bunny.drc), the pages taken in
   the order of the tools above, so that a file one page builds is there for
@@ -147,11 +148,13 @@ def main():
         shutil.copy(os.path.join(src, "scenes", "bunny.drc"), work)
         env = dict(os.environ, PATH=bindir + os.pathsep + os.environ.get("PATH", ""), LC_ALL="C")
 
+        installed = open(os.path.join(src, "man", "CMakeLists.txt")).read().split()
         for tool in TOOLS:
             page = os.path.join(src, "man", tool + ".1")
             if not os.path.exists(page):
                 fail("%s: man/%s.1 exists" % (tool, tool))
                 continue
+            check(tool + ".1" in installed, "man/CMakeLists.txt installs %s.1" % tool)
             roff = open(page, encoding="utf-8").read()
             secs = sections(roff)
             missing = [s for s in SECTIONS if s not in secs]
