@@ -2,10 +2,12 @@
  * and a few damaged ones, each well under 8 KB. Run once from the
  * repository root; the outputs are committed:
  *   make_seed_corpus fuzz/corpus
- * Seeds of fuzz_asf_reader start with the harness's parameter byte. */
+ * Seeds of fuzz_asf_reader and fuzz_structure_trace start with the
+ * harness's parameter byte. */
 #define _POSIX_C_SOURCE 200809L
 #include "asf_container.h"
 #include "as_internal.h"
+#include "fuzz_structure_bytes.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -26,7 +28,7 @@ static void put(const char *dir, const char *name, uint8_t param, const void *da
     snprintf(path, sizeof path, "%s/%s/%s", root, dir, name);
     FILE *f = fopen(path, "wb");
     if (!f) die(path);
-    if (strcmp(dir, "asf_reader") == 0) fputc(param, f);
+    if (strcmp(dir, "asf_reader") == 0 || strcmp(dir, "structure_trace") == 0) fputc(param, f);
     if (size && fwrite(data, 1, size, f) != size) die(path);
     if (fclose(f) != 0) die(path);
 }
@@ -176,6 +178,81 @@ static void ray_seeds(void)
     put("ray_file", "rays_huge_count", 0, file, sizeof file);
 }
 
+/* A tiny scene in the unit cube: a closed cube, a tetrahedron inside it and
+ * a tilted quad crossing it, 18 triangles, enough for a few levels in every
+ * structure and files of a few KB. */
+static as_mesh_t *tiny_mesh(void)
+{
+    static const float pos[] = {
+        0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 0, 0, 1, 1, 0, 1, 1, 1, 1, 0, 1, 1,   /* cube 0..7 */
+        0.3f, 0.3f, 0.3f, 0.7f, 0.35f, 0.3f, 0.45f, 0.7f, 0.35f, 0.5f, 0.5f, 0.7f, /* tetrahedron 8..11 */
+        0.1f, 0.2f, 0.15f, 0.9f, 0.2f, 0.6f, 0.9f, 0.8f, 0.85f, 0.1f, 0.8f, 0.4f,  /* quad 12..15 */
+    };
+    static const uint32_t idx[] = {
+        0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+        3, 6, 2, 3, 7, 6, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5,
+        8, 10, 9, 8, 9, 11, 9, 10, 11, 10, 8, 11,
+        12, 13, 14, 12, 14, 15,
+    };
+    as_mesh_t *m = as_mesh_create(16, pos, (uint32_t)(sizeof idx / sizeof idx[0] / 3), idx);
+    if (!m) die("as_mesh_create");
+    return m;
+}
+
+/* One real file of every structure kind, builder and layout, raw and
+ * compressed, with the parameter byte of fuzz_structure_trace: mostly 0x02
+ * (the table checksum rewritten, section checksums not verified), so that
+ * the fuzzer's mutations reach validation and the traversal. */
+static void structure_seeds(void)
+{
+    static const struct {
+        const char *name;
+        as_structure_kind_t kind;
+        as_builder_t builder;
+        as_layout_t layout;
+        int level;
+        uint8_t param;
+    } seeds[] = {
+        {"bvh_sah_child_bounds", AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH2_CHILD_BOUNDS, 0, 0x02},
+        {"bvh_sah_child_bounds_zstd", AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH2_CHILD_BOUNDS, 19, 0x03},
+        {"bvh_sah_own_bounds", AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH2_OWN_BOUNDS, 0, 0x02},
+        {"bvh_sweep_child_bounds", AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_SWEEP, AS_LAYOUT_BVH2_CHILD_BOUNDS, 0, 0x06},
+        {"bvh_midcut_child_bounds_shifted", AS_STRUCT_BVH, AS_BUILDER_BVH_MIDCUT, AS_LAYOUT_BVH2_CHILD_BOUNDS, 0, 0x0a},
+        {"bvh_midcut_own_bounds_zstd", AS_STRUCT_BVH, AS_BUILDER_BVH_MIDCUT, AS_LAYOUT_BVH2_OWN_BOUNDS, 3, 0x02},
+        {"bvh_sbvh_child_bounds", AS_STRUCT_BVH, AS_BUILDER_BVH_SBVH, AS_LAYOUT_BVH2_CHILD_BOUNDS, 0, 0x02},
+        {"bvh_sbvh_own_bounds", AS_STRUCT_BVH, AS_BUILDER_BVH_SBVH, AS_LAYOUT_BVH2_OWN_BOUNDS, 0, 0x06},
+        {"kd_sah_standard", AS_STRUCT_KD, AS_BUILDER_KD_SAH, AS_LAYOUT_KD_STANDARD, 0, 0x02},
+        {"kd_sah_ropes", AS_STRUCT_KD, AS_BUILDER_KD_SAH, AS_LAYOUT_KD_ROPES, 0, 0x02},
+        {"kd_midcut_standard_zstd", AS_STRUCT_KD, AS_BUILDER_KD_MIDCUT, AS_LAYOUT_KD_STANDARD, 19, 0x03},
+        {"kd_midcut_ropes_shifted", AS_STRUCT_KD, AS_BUILDER_KD_MIDCUT, AS_LAYOUT_KD_ROPES, 0, 0x0e},
+        {"bih", AS_STRUCT_BIH, AS_BUILDER_BIH, AS_LAYOUT_BIH, 0, 0x02},
+        {"bih_zstd_shifted", AS_STRUCT_BIH, AS_BUILDER_BIH, AS_LAYOUT_BIH, 9, 0x0b},
+        {"octree", AS_STRUCT_OCTREE, AS_BUILDER_OCTREE, AS_LAYOUT_OCTREE, 0, 0x02},
+        {"octree_zstd", AS_STRUCT_OCTREE, AS_BUILDER_OCTREE, AS_LAYOUT_OCTREE, 19, 0x06},
+        {"grid", AS_STRUCT_GRID, AS_BUILDER_GRID, AS_LAYOUT_GRID, 0, 0x02},
+        {"grid_zstd", AS_STRUCT_GRID, AS_BUILDER_GRID, AS_LAYOUT_GRID, 19, 0x03},
+    };
+    as_mesh_t *mesh = tiny_mesh();
+    for (size_t i = 0; i < sizeof seeds / sizeof seeds[0]; ++i) {
+        as_build_args_t args;
+        as_build_args_default(&args);
+        args.structure = seeds[i].kind;
+        args.builder = seeds[i].builder;
+        args.layout = seeds[i].layout;
+        args.max_leaf_size = 2;
+        args.thread_count = 1;
+        as_structure_t *s = as_structure_build(mesh, &args);
+        if (!s) die(seeds[i].name);
+        void *bytes;
+        size_t size;
+        if (fuzz_structure_bytes(s, seeds[i].level, &bytes, &size) != AS_OK) die(seeds[i].name);
+        put("structure_trace", seeds[i].name, seeds[i].param, bytes, size);
+        free(bytes);
+        as_structure_release(s);
+    }
+    as_mesh_release(mesh);
+}
+
 int main(int argc, char **argv)
 {
     if (argc != 2) {
@@ -185,5 +262,6 @@ int main(int argc, char **argv)
     root = argv[1];
     asf_seeds();
     ray_seeds();
+    structure_seeds();
     return 0;
 }

@@ -3,22 +3,26 @@
 # corpus (the committed corpus is not grown by a run). Exits 1 when any
 # harness finds a crash, leak or timeout; the reproducer is kept and named.
 #
-#   fuzz/run_fuzzers.sh BUILD_DIR SECONDS
+#   fuzz/run_fuzzers.sh BUILD_DIR SECONDS [HARNESS...]
 #
-# BUILD_DIR must be configured with -DAS_FUZZ=ON -DAS_SANITIZE=ON under Clang.
+# SECONDS is per harness; the harnesses are asf_reader, ray_file,
+# structure_trace and mesh_import (all of them by default). BUILD_DIR must be
+# configured with -DAS_FUZZ=ON -DAS_SANITIZE=ON under Clang.
 set -u
 
-if [ $# -ne 2 ]; then
-    echo "usage: $0 BUILD_DIR SECONDS" >&2
+if [ $# -lt 2 ]; then
+    echo "usage: $0 BUILD_DIR SECONDS [HARNESS...]" >&2
     exit 2
 fi
 build=$1
 seconds=$2
+shift 2
+harnesses=${*:-asf_reader ray_file structure_trace mesh_import}
 here=$(cd "$(dirname "$0")" && pwd)
 work=$(mktemp -d "${TMPDIR:-/tmp}/as_fuzz.XXXXXX") || exit 2
 
 status=0
-for harness in asf_reader ray_file; do
+for harness in $harnesses; do
     exe=$build/fuzz/fuzz_$harness
     if [ ! -x "$exe" ]; then
         echo "$exe: not built (configure with -DAS_FUZZ=ON under Clang)" >&2
