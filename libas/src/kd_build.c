@@ -83,8 +83,14 @@ static kd_tmp *new_tmp(kd_run *run)
     return t;
 }
 
-static kd_tmp *make_leaf(kd_run *run, kd_ref *refs, uint32_t n, double weight)
+static void free_state(const kd_run *run, void *state)
 {
+    if (state && run->c->ops->free_state) run->c->ops->free_state(state);
+}
+
+static kd_tmp *make_leaf(kd_run *run, kd_ref *refs, uint32_t n, void *state, double weight)
+{
+    free_state(run, state);
     kd_tmp *t = new_tmp(run);
     if (t && n) {
         t->ids = malloc(sizeof(uint32_t) * n);
@@ -170,19 +176,20 @@ typedef struct kd_task {
     kd_run *run;
     kd_ref *refs;
     uint32_t n;
+    void *state;
     float box[6];
     uint32_t depth;
     double share, weight;
     kd_tmp *result;
 } kd_task;
 
-static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, const float box[6], uint32_t depth, double share,
-                          double weight);
+static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, void *state, const float box[6], uint32_t depth,
+                          double share, double weight);
 
 static void *build_thread(void *arg)
 {
     kd_task *t = arg;
-    t->result = build_node(t->run, t->refs, t->n, t->box, t->depth, t->share, t->weight);
+    t->result = build_node(t->run, t->refs, t->n, t->state, t->box, t->depth, t->share, t->weight);
     atomic_fetch_sub(&t->run->live_threads, 1);
     return NULL;
 }
@@ -201,29 +208,32 @@ static int goes_right(const kd_ref *r, const kd_split *s)
     return hi >= s->pos;
 }
 
-static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, const float box[6], uint32_t depth, double share,
-                          double weight)
+static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, void *state, const float box[6], uint32_t depth,
+                          double share, double weight)
 {
     const kd_ctx *c = run->c;
+    const kd_builder_ops *ops = c->ops;
     if (atomic_load(&run->cancelled) || atomic_load(&run->oom) || n == 0 || depth >= c->max_depth)
-        return make_leaf(run, refs, n, weight);
+        return make_leaf(run, refs, n, state, weight);
     kd_split sp;
-    if (!c->choose(c, refs, n, box, depth, &sp) || !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3]))
-        return make_leaf(run, refs, n, weight);
+    if (!ops->choose(c, state, refs, n, box, depth, &sp) || !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3]))
+        return make_leaf(run, refs, n, state, weight);
     uint32_t nl = 0, nr = 0;
     for (uint32_t i = 0; i < n; ++i) {
         nl += (uint32_t)goes_left(&refs[i], &sp);
         nr += (uint32_t)goes_right(&refs[i], &sp);
     }
-    if ((nl == n && nr == n) || (double)nl + (double)nr > share) return make_leaf(run, refs, n, weight);
+    if ((nl == n && nr == n) || (double)nl + (double)nr > share) return make_leaf(run, refs, n, state, weight);
     kd_ref *lr = malloc(sizeof(kd_ref) * (nl ? nl : 1)), *rr = malloc(sizeof(kd_ref) * (nr ? nr : 1));
+    uint32_t *map = ops->child_states ? malloc(sizeof(uint32_t) * 2 * (size_t)n) : NULL;
     kd_tmp *t = new_tmp(run);
-    if (!lr || !rr || !t) {
+    if (!lr || !rr || !t || (ops->child_states && !map)) {
         free(lr);
         free(rr);
+        free(map);
         free(t);
         atomic_store(&run->oom, 1);
-        return make_leaf(run, refs, n, weight);
+        return make_leaf(run, refs, n, state, weight);
     }
     float lbox[6], rbox[6];
     memcpy(lbox, box, sizeof lbox);
@@ -233,22 +243,46 @@ static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, const float box
     uint32_t il = 0, ir = 0;
     for (uint32_t i = 0; i < n; ++i) {
         const kd_ref *r = &refs[i];
+        uint32_t to_left = KD_REF_ABSENT, to_right = KD_REF_ABSENT;
         if (goes_left(r, &sp)) {
-            if (r->hi[sp.axis] > sp.pos) clip_ref(c->mesh, r, lbox, &lr[il]);
-            else lr[il] = *r;
+            to_left = il;
+            if (r->hi[sp.axis] > sp.pos) {
+                clip_ref(c->mesh, r, lbox, &lr[il]);
+                to_left |= KD_REF_CHANGED;
+            } else {
+                lr[il] = *r;
+            }
             ++il;
         }
         if (goes_right(r, &sp)) {
-            if (r->lo[sp.axis] < sp.pos) clip_ref(c->mesh, r, rbox, &rr[ir]);
-            else rr[ir] = *r;
+            to_right = ir;
+            if (r->lo[sp.axis] < sp.pos) {
+                clip_ref(c->mesh, r, rbox, &rr[ir]);
+                to_right |= KD_REF_CHANGED;
+            } else {
+                rr[ir] = *r;
+            }
             ++ir;
         }
+        if (map) {
+            map[2 * (size_t)i] = to_left;
+            map[2 * (size_t)i + 1] = to_right;
+        }
     }
+    void *child_state[2] = {NULL, NULL};
+    if (map) {
+        const kd_ref *const child_refs[2] = {lr, rr};
+        const uint32_t child_n[2] = {nl, nr};
+        if (!ops->child_states(c, state, map, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
+        free(map);
+    }
+    void *const lstate = child_state[0], *const rstate = child_state[1];
+    free_state(run, state);
     free(refs);
     t->axis = sp.axis;
     t->pos = sp.pos;
     const double fl = (double)nl / ((double)nl + (double)nr);
-    kd_task task = {run, lr, nl, {0}, depth + 1, share * fl, weight * fl, NULL};
+    kd_task task = {run, lr, nl, lstate, {0}, depth + 1, share * fl, weight * fl, NULL};
     memcpy(task.box, lbox, sizeof lbox);
     int spawned = 0;
     pthread_t tid;
@@ -257,8 +291,8 @@ static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, const float box
             spawned = pthread_create(&tid, NULL, build_thread, &task) == 0;
         if (!spawned) atomic_fetch_sub(&run->live_threads, 1);
     }
-    if (!spawned) task.result = build_node(run, lr, nl, lbox, depth + 1, share * fl, weight * fl);
-    t->child[1] = build_node(run, rr, nr, rbox, depth + 1, share * (1.0 - fl), weight * (1.0 - fl));
+    if (!spawned) task.result = build_node(run, lr, nl, lstate, lbox, depth + 1, share * fl, weight * fl);
+    t->child[1] = build_node(run, rr, nr, rstate, rbox, depth + 1, share * (1.0 - fl), weight * (1.0 - fl));
     if (spawned) pthread_join(tid, NULL);
     t->child[0] = task.result;
     if (!t->child[0] || !t->child[1]) atomic_store(&run->oom, 1);
@@ -318,8 +352,7 @@ static void emit(const kd_tmp *t, kd_emit *e)
     emit(t->child[1], e);
 }
 
-as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, uint32_t builder, kd_choose_fn choose,
-                    as_structure_t *s)
+as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd_builder_ops *ops, as_structure_t *s)
 {
     const double t_start = as_now_ms();
     if (args->layout != AS_LAYOUT_KD_STANDARD && args->layout != AS_LAYOUT_KD_ROPES)
@@ -362,7 +395,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, uint32_t
     }
     if (n == 0) memset(box, 0, sizeof box);
 
-    kd_ctx ctx = {args, mesh, choose, 0, builder};
+    kd_ctx ctx = {args, mesh, ops, 0};
     /* The default depth cap grows with log N (8 + 1.3 log2 N, the usual
      * rule), never beyond the traversal stack. */
     uint32_t cap = (uint32_t)(8.0 + 1.3 * log2((double)(n > 1 ? n : 1)));
@@ -375,7 +408,9 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, uint32_t
     run.c = &ctx;
     run.max_threads = (int)as_thread_count(args->thread_count) - 1;
     pthread_mutex_init(&run.lock, NULL);
-    kd_tmp *root = build_node(&run, refs, n, box, 0, (double)args->split_budget * (double)n, 1.0);
+    void *root_state = ops->root_state ? ops->root_state(&ctx, refs, n) : NULL;
+    if (ops->root_state && !root_state) atomic_store(&run.oom, 1);
+    kd_tmp *root = build_node(&run, refs, n, root_state, box, 0, (double)args->split_budget * (double)n, 1.0);
     pthread_mutex_destroy(&run.lock);
     if (atomic_load(&run.cancelled) || atomic_load(&run.oom) || !root) {
         free_tmp(root);
@@ -404,7 +439,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, uint32_t
     emit(root, &e);
     free_tmp(root);
 
-    as_spatial_meta(s, mesh, args, AS_STRUCT_KD, AS_LAYOUT_KD_STANDARD, AS_KD_LAYOUT_VERSION, builder);
+    as_spatial_meta(s, mesh, args, AS_STRUCT_KD, AS_LAYOUT_KD_STANDARD, AS_KD_LAYOUT_VERSION, ops->builder);
     /* The tree's root box, which the traversal starts from. */
     memcpy(s->meta.bounds_lo, box, sizeof s->meta.bounds_lo);
     memcpy(s->meta.bounds_hi, box + 3, sizeof s->meta.bounds_hi);

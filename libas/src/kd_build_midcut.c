@@ -7,8 +7,10 @@
  * no-progress rule or the split budget (kd_build.c) stop first. */
 #include "kd_build.h"
 
-static int midcut_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box[6], uint32_t depth, kd_split *out)
+static int midcut_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t n, const float box[6],
+                         uint32_t depth, kd_split *out)
 {
+    (void)state;
     (void)refs;
     (void)depth;
     if (n <= c->args->max_leaf_size) return 0;
@@ -26,5 +28,6 @@ static int midcut_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float 
 
 as_error_t as_kd_build_midcut(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
 {
-    return kd_build(mesh, args, AS_BUILDER_KD_MIDCUT, midcut_choose, s);
+    static const kd_builder_ops ops = {AS_BUILDER_KD_MIDCUT, midcut_choose, NULL, NULL, NULL};
+    return kd_build(mesh, args, &ops, s);
 }

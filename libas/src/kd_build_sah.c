@@ -11,10 +11,13 @@
  * empty (the empty-space bonus); a node becomes a leaf when no plane costs
  * less than C_i N.
  *
- * This version sorts the events of each node again, with a radix sort that
- * is linear in the node's references, which gives the paper's O(N log N)
- * bound; the paper's sort-once-and-split event lists would save the
- * constant factor of re-sorting and are left for later. */
+ * The events are sorted once, at the root, one list per axis (section 5 of
+ * the paper). A node hands its lists down: the events of a reference that
+ * reaches a child unchanged keep their order, so they are filtered, not
+ * sorted again; only the references clipped by the split (the straddling
+ * ones, usually few) get new events, which are sorted on their own and
+ * merged in. An event is one 64-bit word, (position, kind, reference), so
+ * the lists' order is the words' order and a merge compares words. */
 #include "kd_build.h"
 
 #include <math.h>
@@ -41,16 +44,37 @@ static float key_float(uint32_t k)
  * insertion sort. One read pass makes every digit's histogram, and a digit
  * that all keys share (the high bits of positions inside one node's box
  * mostly are) costs no pass. `tmp` has room for m keys. */
+/* An event: the position's ordered bits, its kind, and the index of its
+ * reference in the node's array; the words sort as (position, kind, index). */
+#define EV_INDEX_BITS 30
+#define EV_INDEX_MASK ((1u << EV_INDEX_BITS) - 1u)
+#define EV_SORT_SHIFT EV_INDEX_BITS /* the 34 bits above the index are the sort key */
+
+static uint64_t make_event(float pos, int kind, uint32_t index)
+{
+    return ((uint64_t)float_key(pos) << 32) | ((uint64_t)kind << EV_INDEX_BITS) | index;
+}
+
+static uint32_t event_key(uint64_t ev) { return (uint32_t)(ev >> 32); }
+static int event_kind(uint64_t ev) { return (int)((ev >> EV_INDEX_BITS) & 3); }
+static uint32_t event_index(uint64_t ev) { return (uint32_t)ev & EV_INDEX_MASK; }
+
+/* Stable LSD radix sort of events on their 34 key bits, linear in the
+ * count. Events made in increasing index order come out in full word
+ * order. One read pass makes every digit's histogram, and a digit that all
+ * keys share (the high bits of positions inside one box mostly are) costs
+ * no pass. `tmp` has room for m events. */
 static void radix_sort_digits(uint64_t *ev, uint64_t *tmp, size_t m, int bits, int passes, size_t *count)
 {
     const size_t buckets = (size_t)1 << bits, mask = buckets - 1;
     memset(count, 0, sizeof(size_t) * buckets * (size_t)passes);
     for (size_t i = 0; i < m; ++i)
-        for (int pass = 0; pass < passes; ++pass) count[(size_t)pass * buckets + ((ev[i] >> (bits * pass)) & mask)]++;
+        for (int pass = 0; pass < passes; ++pass)
+            count[(size_t)pass * buckets + ((ev[i] >> (EV_SORT_SHIFT + bits * pass)) & mask)]++;
     uint64_t *src = ev, *dst = tmp;
     for (int pass = 0; pass < passes; ++pass) {
         size_t *c = count + (size_t)pass * buckets;
-        const int shift = bits * pass;
+        const int shift = EV_SORT_SHIFT + bits * pass;
         if (c[(src[0] >> shift) & mask] == m) continue; /* one bucket: order kept */
         size_t sum = 0;
         for (size_t k = 0; k < buckets; ++k) { const size_t n = c[k]; c[k] = sum; sum += n; }
@@ -78,40 +102,162 @@ static void sort_events(uint64_t *ev, uint64_t *tmp, size_t m)
     else radix_sort_digits(ev, tmp, m, 12, 3, count);
 }
 
+/* A node's events, one sorted list per axis, in one allocation. */
+typedef struct sah_events {
+    uint64_t *list[3];
+    size_t count[3];
+    uint32_t planar[3]; /* planar events per axis */
+} sah_events;
+
+/* Each list has one spare slot: the children's lists are filled by writing
+ * every event and advancing only past the kept ones. */
+static sah_events *events_alloc(size_t per_axis)
+{
+    sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + 1));
+    if (!e) return NULL;
+    uint64_t *base = (uint64_t *)(e + 1);
+    for (int a = 0; a < 3; ++a) {
+        e->list[a] = base + (size_t)a * (per_axis + 1);
+        e->count[a] = 0;
+        e->planar[a] = 0;
+    }
+    return e;
+}
+
+/* Appends the events of reference `r` (index `index`) on `axis`. */
+static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t index, uint32_t *planar)
+{
+    const float lo = r->lo[axis], hi = r->hi[axis];
+    if (lo == hi) {
+        out[0] = make_event(lo, EV_PLANAR, index);
+        ++*planar;
+        return 1;
+    }
+    out[0] = make_event(lo, EV_START, index);
+    out[1] = make_event(hi, EV_END, index);
+    return 2;
+}
+
+static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
+{
+    (void)c;
+    if (n > EV_INDEX_MASK) return NULL;
+    sah_events *e = events_alloc(2 * (size_t)n);
+    uint64_t *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(n ? n : 1));
+    if (!e || !tmp) {
+        free(e);
+        free(tmp);
+        return NULL;
+    }
+    for (int a = 0; a < 3; ++a) {
+        size_t m = 0;
+        for (uint32_t i = 0; i < n; ++i) m += put_events(e->list[a] + m, &refs[i], a, i, &e->planar[a]);
+        sort_events(e->list[a], tmp, m);
+        e->count[a] = m;
+    }
+    free(tmp);
+    return e;
+}
+
+/* The children's lists: the parent's events of references that reach a
+ * child unchanged, renumbered (the numbering keeps their order, so the list
+ * stays sorted), merged with the sorted events of the clipped ones. One
+ * pass over the parent's events feeds both children. */
+static int sah_child_events(const kd_ctx *c, const void *parent_state, const uint32_t *map, uint32_t parent_n,
+                            const kd_ref *const child_refs[2], const uint32_t child_n[2], void *out[2])
+{
+    (void)c;
+    const sah_events *p = parent_state;
+    size_t changed[2] = {0, 0};
+    for (size_t i = 0; i < 2 * (size_t)parent_n; ++i)
+        changed[i & 1] += map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED);
+    sah_events *e[2] = {events_alloc(2 * (size_t)child_n[0]), events_alloc(2 * (size_t)child_n[1])};
+    /* Per side: the clipped references' child indices, then room for their
+     * events and the sort's scratch. */
+    const size_t most = changed[0] > changed[1] ? changed[0] : changed[1];
+    uint32_t *clipped = malloc(sizeof(uint32_t) * (changed[0] + changed[1] + 1));
+    uint64_t *fresh = malloc(sizeof(uint64_t) * (4 * most + 1));
+    if (!e[0] || !e[1] || !fresh || !clipped) {
+        free(e[0]);
+        free(e[1]);
+        free(fresh);
+        free(clipped);
+        out[0] = out[1] = NULL;
+        return 0;
+    }
+    uint32_t *clipped_side[2] = {clipped, clipped + changed[0]};
+    size_t nc[2] = {0, 0};
+    for (size_t i = 0; i < 2 * (size_t)parent_n; ++i)
+        if (map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED))
+            clipped_side[i & 1][nc[i & 1]++] = map[i] & ~KD_REF_CHANGED;
+    uint64_t *tmp = fresh + 2 * most;
+    for (int a = 0; a < 3; ++a) {
+        uint64_t *kept[2] = {e[0]->list[a], e[1]->list[a]};
+        size_t nk[2] = {0, 0};
+        uint32_t planar[2] = {0, 0};
+        const uint64_t *src = p->list[a];
+        for (size_t k = 0; k < p->count[a]; ++k) {
+            const uint64_t ev = src[k], word = ev & ~(uint64_t)EV_INDEX_MASK;
+            const uint32_t *to = map + 2 * (size_t)event_index(ev);
+            const uint32_t is_planar = event_kind(ev) == EV_PLANAR;
+            const uint32_t keep0 = !(to[0] & KD_REF_CHANGED), keep1 = !(to[1] & KD_REF_CHANGED);
+            kept[0][nk[0]] = word | to[0];
+            kept[1][nk[1]] = word | to[1];
+            nk[0] += keep0;
+            nk[1] += keep1;
+            planar[0] += keep0 & is_planar;
+            planar[1] += keep1 & is_planar;
+        }
+        for (int side = 0; side < 2; ++side) {
+            sah_events *ce = e[side];
+            ce->planar[a] = planar[side];
+            size_t nf = 0;
+            for (size_t k = 0; k < nc[side]; ++k) {
+                const uint32_t ix = clipped_side[side][k];
+                nf += put_events(fresh + nf, &child_refs[side][ix], a, ix, &ce->planar[a]);
+            }
+            sort_events(fresh, tmp, nf);
+            /* Merge from the back into the same array: the kept events
+             * before the first fresh one are already in place. */
+            uint64_t *o = ce->list[a];
+            size_t i = nk[side], j = nf, w = nk[side] + nf;
+            while (j > 0) {
+                if (i > 0 && o[i - 1] > fresh[j - 1]) o[--w] = o[--i];
+                else o[--w] = fresh[--j];
+            }
+            ce->count[a] = nk[side] + nf;
+        }
+    }
+    free(fresh);
+    free(clipped);
+    out[0] = e[0];
+    out[1] = e[1];
+    return 1;
+}
+
 static double half_area(const float b[6])
 {
     const double dx = (double)b[3] - b[0], dy = (double)b[4] - b[1], dz = (double)b[5] - b[2];
     return dx * dy + dy * dz + dz * dx;
 }
 
-static int sah_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box[6], uint32_t depth, kd_split *out)
+static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t n, const float box[6],
+                      uint32_t depth, kd_split *out)
 {
+    (void)refs;
     (void)depth;
+    const sah_events *e = state;
     const double ct = c->args->cost_traversal, ci = c->args->cost_intersection;
     const double area = half_area(box);
     if (n <= 1 && ct >= ci) return 0;
     if (!(area > 0.0)) return 0;
-    uint64_t *ev = malloc(sizeof(uint64_t) * 4 * (size_t)n);
-    if (!ev) return 0;
-    uint64_t *tmp = ev + 2 * (size_t)n;
     double best = ci * (double)n;
     int found = 0;
     for (int axis = 0; axis < 3; ++axis) {
         if (!(box[axis + 3] > box[axis])) continue;
-        size_t m = 0;
-        uint32_t np_total = 0, p_total = 0;
-        for (uint32_t i = 0; i < n; ++i) {
-            const float lo = refs[i].lo[axis], hi = refs[i].hi[axis];
-            if (lo == hi) {
-                ev[m++] = ((uint64_t)float_key(lo) << 2) | EV_PLANAR;
-                ++p_total;
-            } else {
-                ev[m++] = ((uint64_t)float_key(lo) << 2) | EV_START;
-                ev[m++] = ((uint64_t)float_key(hi) << 2) | EV_END;
-                ++np_total;
-            }
-        }
-        sort_events(ev, tmp, m);
+        const uint64_t *ev = e->list[axis];
+        const size_t m = e->count[axis];
+        const uint32_t p_total = e->planar[axis], np_total = (uint32_t)((m - p_total) / 2);
         uint32_t s_lt = 0, e_lt = 0, p_lt = 0;
         /* A side's half area is linear in the plane's position: the face
          * across the axis plus the perimeter of that face times the side's
@@ -121,11 +267,11 @@ static int sah_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box
         const double face = e1 * e2 / area, rim = (e1 + e2) / area;
         const double lo = box[axis], hi = box[axis + 3];
         for (size_t i = 0; i < m;) {
-            const uint32_t key = (uint32_t)(ev[i] >> 2);
+            const uint32_t key = event_key(ev[i]);
             uint32_t s_eq = 0, e_eq = 0, p_eq = 0;
             size_t j = i;
-            for (; j < m && (uint32_t)(ev[j] >> 2) == key; ++j) {
-                const int type = (int)(ev[j] & 3);
+            for (; j < m && event_key(ev[j]) == key; ++j) {
+                const int type = event_kind(ev[j]);
                 s_eq += type == EV_START;
                 e_eq += type == EV_END;
                 p_eq += type == EV_PLANAR;
@@ -134,7 +280,8 @@ static int sah_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box
             if (pos > box[axis] && pos < box[axis + 3]) {
                 const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
                 const uint32_t nl0 = s_lt + p_lt, nr0 = (np_total - e_lt - e_eq) + (p_total - p_lt - p_eq);
-                for (int side = 1; side >= 0; --side) {
+                /* Without planar events both sides cost the same. */
+                for (int side = 1; side >= (p_eq ? 0 : 1); --side) {
                     const uint32_t nl = nl0 + (side ? p_eq : 0), nr = nr0 + (side ? 0 : p_eq);
                     const double lambda = (nl == 0 || nr == 0) ? 0.8 : 1.0;
                     const double cost = lambda * (ct + ci * (al * nl + ar * nr));
@@ -153,11 +300,11 @@ static int sah_choose(const kd_ctx *c, kd_ref *refs, uint32_t n, const float box
             i = j;
         }
     }
-    free(ev);
     return found;
 }
 
 as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
 {
-    return kd_build(mesh, args, AS_BUILDER_KD_SAH, sah_choose, s);
+    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, free};
+    return kd_build(mesh, args, &ops, s);
 }
