@@ -435,12 +435,11 @@ bool ply_sane(const char *data, size_t size)
     return true;
 }
 
-/* OpenMesh's OFF reader takes the header's flags (normals, colours, texture
- * coordinates, BINARY) from a previous can_u_read(filename) call, not from
- * the stream it reads, and the stream overload of can_u_read is private. So
- * the header is shown to it through a file: the source file itself, or, for
- * decompressed data, a temporary file holding only the first line (all that
- * it reads). Returns false when the header is not OFF. */
+/* A text OFF file's counts line and the lines they promise, and the corner
+ * counts of its faces. OpenMesh's OFF reader does not notice a missing or
+ * unreadable counts line, nor a body shorter than the counts: it reads on at
+ * the end of the stream with counts it never set, which loops or allocates
+ * gigabytes. So both are refused here. */
 bool off_faces_sane(const char *data, size_t size)
 {
     std::vector<std::string> words;
@@ -451,16 +450,22 @@ bool off_faces_sane(const char *data, size_t size)
     unsigned long long nv, nf;
     if (!lines.next_nonblank(words) || words.size() < 2 || !parse_count(words[0], nv) ||
         !parse_count(words[1], nf))
-        return true; /* the reader reports it */
+        return false;
     for (unsigned long long i = 0; i < nv; ++i)
-        if (!lines.next_nonblank(words)) return true;
+        if (!lines.next_nonblank(words)) return false;
     for (unsigned long long i = 0; i < nf; ++i) {
-        if (!lines.next_nonblank(words)) return true;
+        if (!lines.next_nonblank(words)) return false;
         if (!face_line_sane(words, 0)) return false;
     }
     return true;
 }
 
+/* OpenMesh's OFF reader takes the header's flags (normals, colours, texture
+ * coordinates, BINARY) from a previous can_u_read(filename) call, not from
+ * the stream it reads, and the stream overload of can_u_read is private. So
+ * the header is shown to it through a file: the source file itself, or, for
+ * decompressed data, a temporary file holding only the first line (all that
+ * it reads). Returns false when the header is not OFF. */
 bool off_prepare_header(const char *data, size_t size, const char *file_path)
 {
     if (file_path) return OpenMesh::IO::OFFReader().can_u_read(std::string(file_path));
