@@ -6,7 +6,7 @@ add_test(NAME docs_man_pages_match_tools
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/docs/check_man_pages.py $<TARGET_FILE_DIR:as-build> ${PROJECT_SOURCE_DIR})
 set_tests_properties(docs_man_pages_match_tools PROPERTIES SKIP_RETURN_CODE 77 LABELS docs)
 
-foreach(_page getting-started guide)
+foreach(_page getting-started guide choosing)
   add_test(NAME docs_${_page}_commands_print_what_it_shows
     COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/docs/run_doc_commands.py ${PROJECT_SOURCE_DIR}/docs/${_page}.md
             $<TARGET_FILE_DIR:as-build> ${PROJECT_SOURCE_DIR} ${AS_SCENES_DIR})
@@ -14,3 +14,11 @@ foreach(_page getting-started guide)
 endforeach()
 # The guide works on a scene of ../shared/scenes.
 set_tests_properties(docs_guide_commands_print_what_it_shows PROPERTIES LABELS "docs;scenes")
+
+# The API reference is generated from as.h (scripts/gen_api_doc.py): this
+# fails when docs/api.md is not what the header gives, and when a function
+# of the header has no comment at its declaration.
+add_test(NAME docs_api_reference_is_current
+  COMMAND ${PROJECT_SOURCE_DIR}/scripts/gen_api_doc.py --check ${PROJECT_SOURCE_DIR}/docs/api.md
+          --header ${PROJECT_SOURCE_DIR}/libas/include/as/as.h)
+set_tests_properties(docs_api_reference_is_current PROPERTIES LABELS docs)
