@@ -38,6 +38,8 @@ static void usage(void)
            "      --ao-rays N            AO rays per primary hit (default 16)\n"
            "      --ao-radius F          AO ray length, fraction of the scene diagonal (0.1)\n"
            "      --diffuse-rays N       diffuse rays per primary hit (default 4)\n"
+           "      --bounces N            whitted: reflection and refraction depth, 0..64\n"
+           "                             (default 10)\n"
            "      --rays FILE            trace the rays of a ray file instead of a camera\n"
            "      --any-hit              with --rays: stop at the first hit\n"
            "      --hits-out FILE        write the hits (primary or --rays) as a hit file\n"
