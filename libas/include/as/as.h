@@ -451,6 +451,55 @@ as_error_t as_hits_parse(const void *data, size_t size, const char *name,
                          as_hit_t **out, size_t *count);
 
 /* ------------------------------------------------------------------------ */
+/* Closest points                                                           */
+
+typedef struct as_closest_point_args {
+    size_t size;                 /* sizeof(as_closest_point_args_t) */
+    float max_distance;          /* only triangles at most this far count (inclusive);
+                                    default +infinity; must be >= 0 */
+    uint32_t thread_count;       /* as_closest_points: 0 = every core */
+    bool assume_valid;           /* skip the validation pass: only for a structure
+                                    on which as_structure_validate has succeeded
+                                    (default false) */
+} as_closest_point_args_t;
+void as_closest_point_args_default(as_closest_point_args_t *args);
+
+/* The nearest point of the structure's triangles to a query point. prim is
+ * the triangle's index in the source mesh, AS_NO_HIT when no triangle lies
+ * within max_distance (then distance is +infinity and the rest zero); the
+ * point is (1 - u - v) v0 + u v1 + v v2, as for a hit. */
+typedef struct as_closest_point_result {
+    uint32_t prim;
+    float point[3];
+    float distance;              /* Euclidean, from the query point */
+    float u, v;
+} as_closest_point_t;
+
+/* The closest point on a BVH (both layouts, every builder) to `point`.
+ * The answer is the triangle at the smallest distance; among triangles at
+ * exactly the same distance, the lowest source index, so the result is the
+ * same for every builder, layout and thread count (distances are computed in
+ * double from the stored float vertices, after Ericson's closest point on a
+ * triangle; a triangle whose corners lie on a line counts as its nearest
+ * edge). Zero-area triangles are not in any structure (as_mesh_info_t's
+ * degenerate_count says how many a mesh has) and are never the answer;
+ * nothing else is skipped. A point with a non-finite coordinate has no
+ * closest point (AS_NO_HIT).
+ * The structure is validated first (a linear pass over it) unless
+ * args->assume_valid is set. Fails with AS_ERROR_UNSUPPORTED for the other
+ * structure kinds (KD tree, BIH, octree, grid), INVALID_ARGUMENT for a NULL
+ * argument or a negative or NaN max_distance, INVALID_STRUCTURE when
+ * validation fails. `args` may be NULL (defaults). */
+as_error_t as_closest_point(const as_structure_t *s, const float point[3], const as_closest_point_args_t *args,
+                            as_closest_point_t *out);
+
+/* The same for `count` points (3 floats each) into out[0..count), on
+ * args->thread_count threads, validating once for the whole batch; each
+ * result equals what as_closest_point gives for that point. */
+as_error_t as_closest_points(const as_structure_t *s, const float *points, size_t count,
+                             const as_closest_point_args_t *args, as_closest_point_t *out);
+
+/* ------------------------------------------------------------------------ */
 /* Cameras and images                                                       */
 
 typedef struct as_camera {

@@ -1,0 +1,3 @@
+# Public-API queries beyond tracing: closest points on the BVH family, the
+# memory estimate before a build, loading from a caller's mapped region.
+as_add_test(test_closest_point SOURCES test_closest_point.c LABELS bvh)
