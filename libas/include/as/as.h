@@ -228,8 +228,15 @@ void as_load_args_default(as_load_args_t *args);
  * newer major versions, unknown required sections and structures this build
  * cannot trace, and verifies checksums. */
 as_structure_t *as_structure_load(const char *path, const as_load_args_t *args);
-/* The same from memory the caller keeps alive while the structure lives;
- * `name` is used in messages. */
+/* The same from memory, with the same checks; `name` is used in messages.
+ * This is also the way to load from a mapped region (mmap of a file, shared
+ * memory): uncompressed sections are read in place, without a copy,
+ * wherever they lie on a 64-byte boundary in `data` (all of them when
+ * `data` is 64-byte aligned, as a mapping, which starts on a page, is), so
+ * the structure keeps pointers into `data`, and the caller must keep those
+ * bytes alive and unchanged until as_structure_release. Compressed sections
+ * are decompressed into memory the structure owns, and a section that is
+ * not 64-byte aligned in `data` is copied there. */
 as_structure_t *as_structure_load_memory(const void *data, size_t size, const char *name,
                                          const as_load_args_t *args);
 
