@@ -29,6 +29,7 @@
  * count. */
 #include "kd_build.h"
 #include "spatial_common.h"
+#include "task_pool.h"
 
 #include <float.h>
 #include <math.h>
@@ -50,8 +51,6 @@ typedef struct kd_tmp {
 
 typedef struct kd_run {
     const kd_ctx *c;
-    atomic_int live_threads;
-    int max_threads;
     atomic_int cancelled;
     atomic_int oom;
     pthread_mutex_t lock;
@@ -130,9 +129,16 @@ static void clip_ref(const as_mesh_t *m, const kd_ref *old, const float box[6], 
     const uint32_t *ix = m->indices + 3 * (size_t)old->id;
     for (int v = 0; v < 3; ++v)
         for (int k = 0; k < 3; ++k) poly[0][v][k] = m->positions[3 * (size_t)ix[v] + k];
+    /* A plane that every vertex is inside of cannot cut the polygon. */
+    double tri_lo[3], tri_hi[3];
+    for (int k = 0; k < 3; ++k) {
+        tri_lo[k] = fmin(poly[0][0][k], fmin(poly[0][1][k], poly[0][2][k]));
+        tri_hi[k] = fmax(poly[0][0][k], fmax(poly[0][1][k], poly[0][2][k]));
+    }
     for (int plane = 0; plane < 6 && cnt > 0; ++plane) {
         const int axis = plane % 3, upper = plane >= 3;
         const double bound = box[plane];
+        if (upper ? tri_hi[axis] <= bound : tri_lo[axis] >= bound) continue;
         int outc = 0;
         for (int i = 0; i < cnt; ++i) {
             const double *p = poly[cur][i], *q = poly[cur][(i + 1) % cnt];
@@ -172,27 +178,17 @@ static void clip_ref(const as_mesh_t *m, const kd_ref *old, const float box[6], 
     out->id = old->id;
 }
 
+/* A subtree to build: the node's references, the builder's data, its box,
+ * and where the finished subtree goes (its parent's child pointer). */
 typedef struct kd_task {
-    kd_run *run;
     kd_ref *refs;
     uint32_t n;
     void *state;
     float box[6];
     uint32_t depth;
     double share, weight;
-    kd_tmp *result;
+    kd_tmp **slot;
 } kd_task;
-
-static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, void *state, const float box[6], uint32_t depth,
-                          double share, double weight);
-
-static void *build_thread(void *arg)
-{
-    kd_task *t = arg;
-    t->result = build_node(t->run, t->refs, t->n, t->state, t->box, t->depth, t->share, t->weight);
-    atomic_fetch_sub(&t->run->live_threads, 1);
-    return NULL;
-}
 
 static int goes_left(const kd_ref *r, const kd_split *s)
 {
@@ -208,95 +204,111 @@ static int goes_right(const kd_ref *r, const kd_split *s)
     return hi >= s->pos;
 }
 
-static kd_tmp *build_node(kd_run *run, kd_ref *refs, uint32_t n, void *state, const float box[6], uint32_t depth,
-                          double share, double weight)
+/* Builds the subtree of task t: recurses into the left child and loops on
+ * the right one, and hands the right child to an idle thread when it is big
+ * enough to be worth it. */
+static void build_subtree(as_task_pool *pool, kd_run *run, kd_task t)
 {
     const kd_ctx *c = run->c;
     const kd_builder_ops *ops = c->ops;
-    if (atomic_load(&run->cancelled) || atomic_load(&run->oom) || n == 0 || depth >= c->max_depth)
-        return make_leaf(run, refs, n, state, weight);
-    kd_split sp;
-    if (!ops->choose(c, state, refs, n, box, depth, &sp) || !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3]))
-        return make_leaf(run, refs, n, state, weight);
-    uint32_t nl = 0, nr = 0;
-    for (uint32_t i = 0; i < n; ++i) {
-        nl += (uint32_t)goes_left(&refs[i], &sp);
-        nr += (uint32_t)goes_right(&refs[i], &sp);
-    }
-    if ((nl == n && nr == n) || (double)nl + (double)nr > share) return make_leaf(run, refs, n, state, weight);
-    kd_ref *lr = malloc(sizeof(kd_ref) * (nl ? nl : 1)), *rr = malloc(sizeof(kd_ref) * (nr ? nr : 1));
-    uint32_t *map = ops->child_states ? malloc(sizeof(uint32_t) * 2 * (size_t)n) : NULL;
-    kd_tmp *t = new_tmp(run);
-    if (!lr || !rr || !t || (ops->child_states && !map)) {
-        free(lr);
-        free(rr);
-        free(map);
-        free(t);
-        atomic_store(&run->oom, 1);
-        return make_leaf(run, refs, n, state, weight);
-    }
-    float lbox[6], rbox[6];
-    memcpy(lbox, box, sizeof lbox);
-    memcpy(rbox, box, sizeof rbox);
-    lbox[sp.axis + 3] = sp.pos;
-    rbox[sp.axis] = sp.pos;
-    uint32_t il = 0, ir = 0;
-    for (uint32_t i = 0; i < n; ++i) {
-        const kd_ref *r = &refs[i];
-        uint32_t to_left = KD_REF_ABSENT, to_right = KD_REF_ABSENT;
-        if (goes_left(r, &sp)) {
-            to_left = il;
-            if (r->hi[sp.axis] > sp.pos) {
-                clip_ref(c->mesh, r, lbox, &lr[il]);
-                to_left |= KD_REF_CHANGED;
-            } else {
-                lr[il] = *r;
-            }
-            ++il;
+    for (;;) {
+        kd_ref *const refs = t.refs;
+        const uint32_t n = t.n;
+        const float *const box = t.box;
+        kd_split sp;
+        if (atomic_load(&run->cancelled) || atomic_load(&run->oom) || n == 0 || t.depth >= c->max_depth ||
+            !ops->choose(c, t.state, refs, n, box, t.depth, &sp) ||
+            !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3])) {
+            *t.slot = make_leaf(run, refs, n, t.state, t.weight);
+            return;
         }
-        if (goes_right(r, &sp)) {
-            to_right = ir;
-            if (r->lo[sp.axis] < sp.pos) {
-                clip_ref(c->mesh, r, rbox, &rr[ir]);
-                to_right |= KD_REF_CHANGED;
-            } else {
-                rr[ir] = *r;
-            }
-            ++ir;
+        uint32_t nl = 0, nr = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            nl += (uint32_t)goes_left(&refs[i], &sp);
+            nr += (uint32_t)goes_right(&refs[i], &sp);
         }
+        if ((nl == n && nr == n) || (double)nl + (double)nr > t.share) {
+            *t.slot = make_leaf(run, refs, n, t.state, t.weight);
+            return;
+        }
+        kd_ref *lr = malloc(sizeof(kd_ref) * (nl ? nl : 1)), *rr = malloc(sizeof(kd_ref) * (nr ? nr : 1));
+        uint32_t *map = ops->child_states ? malloc(sizeof(uint32_t) * 2 * (size_t)n) : NULL;
+        kd_tmp *node = new_tmp(run);
+        if (!lr || !rr || !node || (ops->child_states && !map)) {
+            free(lr);
+            free(rr);
+            free(map);
+            free(node);
+            atomic_store(&run->oom, 1);
+            *t.slot = make_leaf(run, refs, n, t.state, t.weight);
+            return;
+        }
+        float lbox[6], rbox[6];
+        memcpy(lbox, box, sizeof lbox);
+        memcpy(rbox, box, sizeof rbox);
+        lbox[sp.axis + 3] = sp.pos;
+        rbox[sp.axis] = sp.pos;
+        uint32_t il = 0, ir = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            const kd_ref *r = &refs[i];
+            uint32_t to_left = KD_REF_ABSENT, to_right = KD_REF_ABSENT;
+            if (goes_left(r, &sp)) {
+                to_left = il;
+                if (r->hi[sp.axis] > sp.pos) {
+                    clip_ref(c->mesh, r, lbox, &lr[il]);
+                    to_left |= KD_REF_CHANGED;
+                } else {
+                    lr[il] = *r;
+                }
+                ++il;
+            }
+            if (goes_right(r, &sp)) {
+                to_right = ir;
+                if (r->lo[sp.axis] < sp.pos) {
+                    clip_ref(c->mesh, r, rbox, &rr[ir]);
+                    to_right |= KD_REF_CHANGED;
+                } else {
+                    rr[ir] = *r;
+                }
+                ++ir;
+            }
+            if (map) {
+                map[2 * (size_t)i] = to_left;
+                map[2 * (size_t)i + 1] = to_right;
+            }
+        }
+        void *child_state[2] = {NULL, NULL};
         if (map) {
-            map[2 * (size_t)i] = to_left;
-            map[2 * (size_t)i + 1] = to_right;
+            const kd_ref *const child_refs[2] = {lr, rr};
+            const uint32_t child_n[2] = {nl, nr};
+            if (!ops->child_states(c, t.state, map, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
+            free(map);
         }
+        free_state(run, t.state);
+        free(refs);
+        node->axis = sp.axis;
+        node->pos = sp.pos;
+        *t.slot = node;
+        const double fl = (double)nl / ((double)nl + (double)nr);
+        kd_task lt = {lr, nl, child_state[0], {0}, t.depth + 1, t.share * fl, t.weight * fl, &node->child[0]};
+        kd_task rt = {rr, nr, child_state[1], {0}, t.depth + 1, t.share * (1.0 - fl), t.weight * (1.0 - fl),
+                      &node->child[1]};
+        memcpy(lt.box, lbox, sizeof lbox);
+        memcpy(rt.box, rbox, sizeof rbox);
+        if (pool && nr >= PARALLEL_MIN_REFS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &rt)) {
+            t = lt;
+            continue;
+        }
+        build_subtree(pool, run, lt);
+        t = rt;
     }
-    void *child_state[2] = {NULL, NULL};
-    if (map) {
-        const kd_ref *const child_refs[2] = {lr, rr};
-        const uint32_t child_n[2] = {nl, nr};
-        if (!ops->child_states(c, state, map, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
-        free(map);
-    }
-    void *const lstate = child_state[0], *const rstate = child_state[1];
-    free_state(run, state);
-    free(refs);
-    t->axis = sp.axis;
-    t->pos = sp.pos;
-    const double fl = (double)nl / ((double)nl + (double)nr);
-    kd_task task = {run, lr, nl, lstate, {0}, depth + 1, share * fl, weight * fl, NULL};
-    memcpy(task.box, lbox, sizeof lbox);
-    int spawned = 0;
-    pthread_t tid;
-    if (nl >= PARALLEL_MIN_REFS && nr >= PARALLEL_MIN_REFS) {
-        if (atomic_fetch_add(&run->live_threads, 1) < run->max_threads)
-            spawned = pthread_create(&tid, NULL, build_thread, &task) == 0;
-        if (!spawned) atomic_fetch_sub(&run->live_threads, 1);
-    }
-    if (!spawned) task.result = build_node(run, lr, nl, lstate, lbox, depth + 1, share * fl, weight * fl);
-    t->child[1] = build_node(run, rr, nr, rstate, rbox, depth + 1, share * (1.0 - fl), weight * (1.0 - fl));
-    if (spawned) pthread_join(tid, NULL);
-    t->child[0] = task.result;
-    if (!t->child[0] || !t->child[1]) atomic_store(&run->oom, 1);
-    return t;
+}
+
+static void build_task(as_task_pool *pool, void *task, void *user)
+{
+    kd_task t;
+    memcpy(&t, task, sizeof t);
+    build_subtree(pool, user, t);
 }
 
 static void free_tmp(kd_tmp *t)
@@ -406,11 +418,15 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     kd_run run;
     memset(&run, 0, sizeof run);
     run.c = &ctx;
-    run.max_threads = (int)as_thread_count(args->thread_count) - 1;
     pthread_mutex_init(&run.lock, NULL);
     void *root_state = ops->root_state ? ops->root_state(&ctx, refs, n) : NULL;
     if (ops->root_state && !root_state) atomic_store(&run.oom, 1);
-    kd_tmp *root = build_node(&run, refs, n, root_state, box, 0, (double)args->split_budget * (double)n, 1.0);
+    kd_tmp *root = NULL;
+    kd_task first = {refs, n, root_state, {0}, 0, (double)args->split_budget * (double)n, 1.0, &root};
+    memcpy(first.box, box, sizeof box);
+    const unsigned threads = as_thread_count(args->thread_count);
+    if (threads < 2 || n < 2 * PARALLEL_MIN_REFS || !as_task_pool_run(threads, sizeof first, &first, build_task, &run))
+        build_subtree(NULL, &run, first);
     pthread_mutex_destroy(&run.lock);
     if (atomic_load(&run.cancelled) || atomic_load(&run.oom) || !root) {
         free_tmp(root);

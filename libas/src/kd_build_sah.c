@@ -268,14 +268,11 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
         const double lo = box[axis], hi = box[axis + 3];
         for (size_t i = 0; i < m;) {
             const uint32_t key = event_key(ev[i]);
-            uint32_t s_eq = 0, e_eq = 0, p_eq = 0;
+            uint32_t kinds[3] = {0, 0, 0};
             size_t j = i;
-            for (; j < m && event_key(ev[j]) == key; ++j) {
-                const int type = event_kind(ev[j]);
-                s_eq += type == EV_START;
-                e_eq += type == EV_END;
-                p_eq += type == EV_PLANAR;
-            }
+            do kinds[event_kind(ev[j])]++;
+            while (++j < m && event_key(ev[j]) == key);
+            const uint32_t e_eq = kinds[EV_END], p_eq = kinds[EV_PLANAR], s_eq = kinds[EV_START];
             const float pos = key_float(key);
             if (pos > box[axis] && pos < box[axis + 3]) {
                 const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
