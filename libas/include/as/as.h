@@ -204,6 +204,25 @@ typedef struct as_structure as_structure_t;
  * count. */
 as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t *args);
 
+/* What a build will take, known before it runs. */
+typedef struct as_memory_estimate {
+    uint64_t structure_bytes_max;      /* upper bound of the built structure's bytes (META
+                                          and every section, raw): what
+                                          as_structure_stats_t.structure_bytes will say */
+    uint64_t structure_bytes_typical;  /* what such meshes usually give; an estimate */
+    uint64_t build_peak_bytes;         /* the builder's working memory at its peak, the
+                                          result included, the mesh not: an estimate
+                                          from the builder's allocations, not a bound */
+} as_memory_estimate_t;
+
+/* The memory a build of `mesh` with `args` (NULL: defaults) will need, from
+ * the mesh's counts and the arguments alone, without building. Bounds are
+ * derived for the BVH family (every builder, both layouts): for an SBVH
+ * they follow split_budget. Fails with AS_ERROR_UNSUPPORTED for the other
+ * structure kinds, INVALID_ARGUMENT for a NULL argument or a split budget
+ * the builder would refuse. */
+as_error_t as_structure_estimate(const as_mesh_t *mesh, const as_build_args_t *args, as_memory_estimate_t *out);
+
 typedef struct as_save_args {
     size_t size;
     int compression_level;       /* 0: store raw; 1..22: zstd level */

@@ -1,0 +1,142 @@
+/* as_structure_estimate: for every BVH builder and layout, on the bunny,
+ * random soups and a flat scene, the built structure is never larger than
+ * structure_bytes_max, and the bound is not absurd; the build estimate grows
+ * with the mesh and covers the result; other kinds are refused. */
+#include "reference.h"
+#include "test_util.h"
+
+#include <math.h>
+
+static const as_builder_t bvh_builders[] = {AS_BUILDER_BVH_SAH_BINNED, AS_BUILDER_BVH_SAH_SWEEP,
+                                            AS_BUILDER_BVH_MIDCUT, AS_BUILDER_BVH_SBVH};
+static const as_layout_t bvh_layouts[] = {AS_LAYOUT_BVH2_CHILD_BOUNDS, AS_LAYOUT_BVH2_OWN_BOUNDS};
+
+static as_mesh_t *random_soup(uint64_t seed, uint32_t tris, int flat)
+{
+    uint64_t st = seed;
+    float *p = malloc(sizeof(float) * 9 * tris);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * tris);
+    for (uint32_t t = 0; t < tris; ++t) {
+        float c[3];
+        for (int k = 0; k < 3; ++k) c[k] = (float)ref_rand01(&st);
+        for (int v = 0; v < 3; ++v)
+            for (int k = 0; k < 3; ++k)
+                p[9 * t + 3 * v + k] = flat && k == 2 ? 0.0f : c[k] + 0.05f * (float)(ref_rand01(&st) - 0.5);
+        for (int v = 0; v < 3; ++v) ix[3 * t + v] = 3 * t + v;
+    }
+    as_mesh_t *m = as_mesh_create(3 * tris, p, tris, ix);
+    free(p);
+    free(ix);
+    return m;
+}
+
+/* Built bytes against the bound for every variant; returns the largest
+ * ratio bound / actual of the non-SBVH builders. */
+static double bound_holds_for_every_variant(const char *name, const as_mesh_t *mesh)
+{
+    double worst_ratio = 0.0;
+    for (size_t b = 0; b < 4; ++b) {
+        for (size_t l = 0; l < 2; ++l) {
+            as_build_args_t args;
+            as_build_args_default(&args);
+            args.builder = bvh_builders[b];
+            args.layout = bvh_layouts[l];
+            as_memory_estimate_t est;
+            CHECK_EQ_INT(as_structure_estimate(mesh, &args, &est), AS_OK);
+            as_structure_t *s = as_structure_build(mesh, &args);
+            CHECK(s != NULL);
+            if (!s) continue;
+            as_structure_stats_t st;
+            CHECK_EQ_INT(as_structure_get_stats(s, &st), AS_OK);
+            const double ratio = (double)est.structure_bytes_max / (double)st.structure_bytes;
+            fprintf(stderr, "  %s %s %s: built %llu bytes, bound %llu (x%.2f), typical %llu (x%.2f), build "
+                    "estimate %llu\n", name, as_builder_name(bvh_builders[b]), as_layout_name(bvh_layouts[l]),
+                    (unsigned long long)st.structure_bytes, (unsigned long long)est.structure_bytes_max, ratio,
+                    (unsigned long long)est.structure_bytes_typical,
+                    (double)est.structure_bytes_typical / (double)st.structure_bytes,
+                    (unsigned long long)est.build_peak_bytes);
+            CHECK(st.structure_bytes <= est.structure_bytes_max);
+            CHECK(est.structure_bytes_typical <= est.structure_bytes_max);
+            CHECK(est.build_peak_bytes >= est.structure_bytes_max);
+            if (bvh_builders[b] != AS_BUILDER_BVH_SBVH && ratio > worst_ratio) worst_ratio = ratio;
+            as_structure_release(s);
+        }
+    }
+    return worst_ratio;
+}
+
+static void built_structures_stay_within_the_bound(void)
+{
+    as_mesh_t *bunny = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
+    CHECK(bunny != NULL);
+    if (bunny) {
+        const double ratio = bound_holds_for_every_variant("bunny", bunny);
+        /* Not absurd: within 4x of what the bunny really takes. */
+        CHECK(ratio > 1.0 && ratio <= 4.0);
+        as_mesh_release(bunny);
+    }
+    const uint32_t sizes[] = {1, 2, 7, 1000, 20000};
+    for (size_t i = 0; i < sizeof sizes / sizeof sizes[0]; ++i) {
+        for (int flat = 0; flat < 2; ++flat) {
+            as_mesh_t *m = random_soup(11 + i, sizes[i], flat);
+            CHECK(m != NULL);
+            if (!m) continue;
+            char name[64];
+            snprintf(name, sizeof name, "%s%u", flat ? "flat" : "soup", sizes[i]);
+            bound_holds_for_every_variant(name, m);
+            as_mesh_release(m);
+        }
+    }
+}
+
+/* A larger SBVH budget allows more references, so a larger bound; the
+ * build estimate grows with the mesh. */
+static void estimates_grow_with_the_budget_and_the_mesh(void)
+{
+    as_mesh_t *small = random_soup(3, 1000, 0), *large = random_soup(3, 4000, 0);
+    as_build_args_t args;
+    as_build_args_default(&args);
+    args.builder = AS_BUILDER_BVH_SBVH;
+    as_memory_estimate_t a, b;
+    args.split_budget = 1.0f;
+    CHECK_EQ_INT(as_structure_estimate(small, &args, &a), AS_OK);
+    args.split_budget = 2.0f;
+    CHECK_EQ_INT(as_structure_estimate(small, &args, &b), AS_OK);
+    CHECK(b.structure_bytes_max > a.structure_bytes_max);
+    for (size_t k = 0; k < 4; ++k) {
+        args.builder = bvh_builders[k];
+        CHECK_EQ_INT(as_structure_estimate(small, &args, &a), AS_OK);
+        CHECK_EQ_INT(as_structure_estimate(large, &args, &b), AS_OK);
+        CHECK(b.build_peak_bytes > a.build_peak_bytes);
+        CHECK(b.structure_bytes_max > a.structure_bytes_max);
+    }
+    args.split_budget = NAN;
+    args.builder = AS_BUILDER_BVH_SBVH;
+    CHECK_EQ_INT(as_structure_estimate(small, &args, &a), AS_ERROR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(as_structure_estimate(NULL, NULL, &a), AS_ERROR_INVALID_ARGUMENT);
+    as_mesh_release(small);
+    as_mesh_release(large);
+}
+
+static void other_kinds_are_refused(void)
+{
+    as_mesh_t *m = random_soup(5, 100, 0);
+    const as_structure_kind_t kinds[] = {AS_STRUCT_KD, AS_STRUCT_BIH, AS_STRUCT_OCTREE, AS_STRUCT_GRID};
+    for (size_t k = 0; k < 4; ++k) {
+        as_build_args_t args;
+        as_build_args_default(&args);
+        args.structure = kinds[k];
+        as_memory_estimate_t e;
+        CHECK_EQ_INT(as_structure_estimate(m, &args, &e), AS_ERROR_UNSUPPORTED);
+        CHECK_STR_CONTAINS(as_get_error_message(), as_structure_kind_name(kinds[k]));
+    }
+    as_mesh_release(m);
+}
+
+int main(void)
+{
+    RUN_TEST(built_structures_stay_within_the_bound);
+    RUN_TEST(estimates_grow_with_the_budget_and_the_mesh);
+    RUN_TEST(other_kinds_are_refused);
+    TEST_EXIT();
+}
