@@ -41,15 +41,9 @@ DEFAULT_OUT = os.path.join(ROOT, "docs", "api.md")
 CONVENTION = re.compile(r"^as_\w+_(?:release|args_default)$")
 CONVENTION_NOTE = "`%s` has no comment of its own: the [conventions](#conventions) state its contract."
 
-# Functions that had no comment of their own in as.h when this check came
-# in. Each is still shown in the reference; each is to get a comment in the
-# header, and its name then leaves this list (the check says which). Any
-# other function without a comment fails the check.
-KNOWN_UNDOCUMENTED = {
-    "as_mesh_get_info", "as_structure_get_stats",
-    "as_structure_section_count", "as_structure_section_info",
-    "as_verify", "as_rays_whitted_bounce",
-}
+# Functions allowed to have no comment of their own: none. Any function
+# without one fails the check.
+KNOWN_UNDOCUMENTED = set()
 
 
 def mask_comments(text):

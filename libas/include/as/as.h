@@ -110,6 +110,8 @@ typedef struct as_mesh_info {
     uint64_t hash;               /* XXH3-64 of positions then indices */
 } as_mesh_info_t;
 
+/* Fills `info` with the mesh's counts, bounds and hash; a NULL mesh gives
+ * all zeros. */
 void as_mesh_get_info(const as_mesh_t *mesh, as_mesh_info_t *info);
 /* Arrays owned by the mesh; NULL where the file had none. */
 const float *as_mesh_positions(const as_mesh_t *mesh);    /* 3 per vertex */
@@ -304,6 +306,10 @@ typedef struct as_structure_stats {
     uint32_t writer_version;
 } as_structure_stats_t;
 
+/* The figures as-inspect prints: counts, depths, histograms, SAH cost,
+ * memory and the build record. Validates the structure first (the walk
+ * follows its child indices), so a damaged one gives
+ * AS_ERROR_INVALID_STRUCTURE and no figures. */
 as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *stats);
 
 /* Sections of the structure (for inspection). */
@@ -319,7 +325,11 @@ typedef struct as_section_info {
     const char *purpose;         /* what the section is for; static string */
 } as_section_info_t;
 
+/* How many sections the structure has (0 for NULL): its file's when it was
+ * loaded, else META and the built sections. */
 uint32_t as_structure_section_count(const as_structure_t *s);
+/* Section `index` (0 <= index < as_structure_section_count) in file order;
+ * AS_ERROR_INVALID_ARGUMENT when out of range. */
 as_error_t as_structure_section_info(const as_structure_t *s, uint32_t index,
                                      as_section_info_t *info);
 
@@ -458,6 +468,11 @@ typedef struct as_verify_result {
     double verify_ms;
 } as_verify_result_t;
 
+/* Checks `hits` (one per ray, from a trace of `rays` with the same query)
+ * against the double-precision reference on args->sample_count rays chosen
+ * by args->seed, and counts the disagreements in `result`. `any_hit` says
+ * which query made the hits. A disagreement is a result, not an error:
+ * the return is AS_OK unless an argument is bad or memory runs out. */
 as_error_t as_verify(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits, size_t count,
                      bool any_hit, const as_verify_args_t *args, as_verify_result_t *result);
 
@@ -600,6 +615,11 @@ void as_whitted_args_default(as_whitted_args_t *args);
  * 2 glass. */
 int as_whitted_material(const as_whitted_args_t *args, uint32_t prim);
 
+/* One Whitted bounce: for every hit of `rays`, a shadow ray to each light
+ * (into *shadow) and, on mirrors and glass, the reflection and refraction
+ * rays (into *next), each leaving the surface by the offset on its own
+ * side. Both arrays are allocated here (free() them) and may be empty;
+ * missed rays make none. */
 as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits,
                                   size_t count, const as_whitted_args_t *args, as_ray_t **next,
                                   size_t *next_count, as_ray_t **shadow, size_t *shadow_count);
