@@ -9,10 +9,12 @@
  *
  * Each triangle goes to every cell its box covers that it overlaps (exact
  * triangle/box test, Akenine-Moller 2001, with a few-ulp pad). Build in
- * parallel passes over fixed blocks of triangles: count per cell (atomic
- * adds: the totals do not depend on the order), a sequential prefix sum
- * into GRDC, fill (atomic cursors), then sort each cell's list in parallel,
- * so PRIM is the same whatever the thread count. */
+ * parallel passes over fixed blocks of triangles: find each triangle's cells
+ * and count per cell (atomic adds: the totals do not depend on the order),
+ * keeping the (cell, triangle) pairs of each block so the overlap tests run
+ * once; a sequential prefix sum into GRDC; fill from the pairs (atomic
+ * cursors); then sort each cell's list in parallel, so PRIM is the same
+ * whatever the thread count. */
 #include "spatial_common.h"
 #include "grid_layout.h"
 
@@ -28,6 +30,12 @@ static inline float min3f(float a, float b, float c) { const float m = a < b ? a
 static inline float max3f(float a, float b, float c) { const float m = a > b ? a : b; return m > c ? m : c; }
 
 #define BLOCK 2048
+
+/* The (cell, triangle) pairs pass 1 found in one block, in triangle order. */
+typedef struct grid_pairs {
+    uint32_t *cell, *tri;
+    size_t count, cap;
+} grid_pairs;
 
 typedef struct grid_job {
     const as_mesh_t *mesh;
@@ -45,7 +53,38 @@ typedef struct grid_job {
     double pad;                   /* 4 x as_spatial_pad of the grid box */
     double budget;                /* most references allowed */
     atomic_int over;              /* pass 1 found more than the budget */
+    atomic_int oom;
+    grid_pairs *pairs;            /* one per block */
 } grid_job;
+
+static int pairs_push(grid_pairs *p, uint32_t cell, uint32_t tri)
+{
+    if (p->count == p->cap) {
+        const size_t cap = p->cap ? 2 * p->cap : 4 * BLOCK;
+        uint32_t *c = realloc(p->cell, sizeof(uint32_t) * cap);
+        if (c) p->cell = c;
+        uint32_t *t = c ? realloc(p->tri, sizeof(uint32_t) * cap) : NULL;
+        if (!c || !t) return 0;
+        p->tri = t;
+        p->cap = cap;
+    }
+    p->cell[p->count] = cell;
+    p->tri[p->count] = tri;
+    ++p->count;
+    return 1;
+}
+
+static void report_progress(grid_job *job, uint32_t triangles)
+{
+    const uint64_t done = atomic_fetch_add(&job->done, triangles) + triangles;
+    if (job->args->progress) {
+        pthread_mutex_lock(&job->lock);
+        if (!atomic_load(&job->cancelled) &&
+            !job->args->progress(job->args->progress_user, 0.5 * (double)done / (double)job->total + 0.5 * (job->pass - 1)))
+            atomic_store(&job->cancelled, 1);
+        pthread_mutex_unlock(&job->lock);
+    }
+}
 
 /* The box of cell index i on axis k: the same expressions as the traversal. */
 static float wall(const as_grid_header_t *g, int k, uint32_t i)
@@ -61,10 +100,12 @@ static uint32_t clamp_cell(const as_grid_header_t *g, int k, double x)
     return (uint32_t)f;
 }
 
+/* Pass 1 over a block: the cells of each triangle, counted and kept. */
 static void grid_block(void *user, size_t block)
 {
     grid_job *job = user;
     if (atomic_load(&job->cancelled)) return;
+    grid_pairs *pairs = &job->pairs[block];
     const as_mesh_t *m = job->mesh;
     const as_grid_header_t *g = job->g;
     const uint32_t begin = (uint32_t)(block * BLOCK);
@@ -74,7 +115,7 @@ static void grid_block(void *user, size_t block)
         if (job->skip[t]) continue;
         /* Pass 1 stops as soon as the budget is exceeded: the total would
          * exceed it too, whatever the order. */
-        if (job->pass == 1 && (t & 63) == 0) {
+        if ((t & 63) == 0) {
             if (atomic_load(&job->over)) return;
             if ((double)(atomic_load(&job->refs) + local_refs) > job->budget) { atomic_store(&job->over, 1); return; }
         }
@@ -99,23 +140,40 @@ static void grid_block(void *user, size_t block)
                     /* A box within one cell overlaps it: no test. */
                     if (!single && !as_tri_box_overlap(a, b, c, lo, hi, as_spatial_pad(lo, hi))) continue;
                     const size_t cell = ((size_t)z * g->dims[1] + y) * g->dims[0] + x;
-                    if (job->pass == 1) {
-                        atomic_fetch_add_explicit(&job->counts[cell], 1, memory_order_relaxed);
-                        ++local_refs;
-                    } else {
-                        const uint32_t at = atomic_fetch_add_explicit(&job->counts[cell], 1, memory_order_relaxed);
-                        job->prims[at] = t;
+                    atomic_fetch_add_explicit(&job->counts[cell], 1, memory_order_relaxed);
+                    ++local_refs;
+                    if (!pairs_push(pairs, (uint32_t)cell, t)) {
+                        atomic_store(&job->oom, 1);
+                        return;
                     }
                 }
     }
-    if (job->pass == 1) atomic_fetch_add(&job->refs, local_refs);
-    const uint64_t done = atomic_fetch_add(&job->done, end - begin) + (end - begin);
-    if (job->args->progress) {
-        pthread_mutex_lock(&job->lock);
-        if (!atomic_load(&job->cancelled) &&
-            !job->args->progress(job->args->progress_user, 0.5 * (double)done / (double)job->total + 0.5 * (job->pass - 1)))
-            atomic_store(&job->cancelled, 1);
-        pthread_mutex_unlock(&job->lock);
+    atomic_fetch_add(&job->refs, local_refs);
+    report_progress(job, end - begin);
+}
+
+/* Pass 2 over a block: its pairs into the cells' lists. */
+static void grid_fill(void *user, size_t block)
+{
+    grid_job *job = user;
+    if (atomic_load(&job->cancelled)) return;
+    const grid_pairs *pairs = &job->pairs[block];
+    for (size_t i = 0; i < pairs->count; ++i) {
+        const uint32_t at = atomic_fetch_add_explicit(&job->counts[pairs->cell[i]], 1, memory_order_relaxed);
+        job->prims[at] = pairs->tri[i];
+    }
+    const uint32_t begin = (uint32_t)(block * BLOCK), nt = job->mesh->triangle_count;
+    report_progress(job, begin + BLOCK < nt ? BLOCK : nt - begin);
+}
+
+static void free_pairs(grid_pairs *pairs, size_t blocks)
+{
+    if (!pairs) return;
+    for (size_t b = 0; b < blocks; ++b) {
+        free(pairs[b].cell);
+        free(pairs[b].tri);
+        pairs[b].cell = pairs[b].tri = NULL;
+        pairs[b].count = pairs[b].cap = 0;
     }
 }
 
@@ -166,6 +224,7 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         return as_set_error(AS_ERROR_UNSUPPORTED, "the grid builder writes only the grid layout");
     const unsigned threads = as_thread_count(args->thread_count);
     const uint32_t nt = mesh->triangle_count;
+    const size_t blocks = (nt + BLOCK - 1) / BLOCK;
     uint8_t *skip = malloc(nt ? nt : 1);
     if (!skip) return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build");
     uint32_t n = 0;
@@ -216,7 +275,8 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.total = 2 * (uint64_t)(nt ? nt : 1);
     job.pad = 4.0 * as_spatial_pad(g->lo, g->hi);
     job.budget = budget < (double)0xFFFFFFF0u ? budget : (double)0xFFFFFFF0u;
-    const size_t blocks = (nt + BLOCK - 1) / BLOCK;
+    job.pairs = calloc(blocks ? blocks : 1, sizeof *job.pairs);
+    if (!job.pairs) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
     uint64_t cells = 1;
     for (;;) {
         dims_for(ext, active, scale, g->dims);
@@ -238,8 +298,10 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         atomic_store(&job.over, 0);
         atomic_store(&job.refs, 0);
         atomic_store(&job.done, 0);
+        free_pairs(job.pairs, blocks);
         as_parallel_for(threads, blocks, grid_block, &job);
         if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
+        if (atomic_load(&job.oom)) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
         const uint64_t refs = atomic_load(&job.refs);
         if (!atomic_load(&job.over) && (double)refs <= job.budget) break;
         if (cells == 1) {
@@ -269,7 +331,8 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.pass = 2;
     job.prims = prims;
     atomic_store(&job.done, 0);
-    as_parallel_for(threads, blocks, grid_block, &job);
+    as_parallel_for(threads, blocks, grid_fill, &job);
+    free_pairs(job.pairs, blocks);
     if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
     sort_job sj = {offsets, prims, cells};
     as_parallel_for(threads, (cells + SORT_BLOCK - 1) / SORT_BLOCK, sort_cells, &sj);
@@ -294,6 +357,8 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     s->build_ms = as_now_ms() - t_start;
 done:
     pthread_mutex_destroy(&job.lock);
+    free_pairs(job.pairs, blocks);
+    free(job.pairs);
     free(skip);
     free(counts);
     free(g);

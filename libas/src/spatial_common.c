@@ -72,6 +72,16 @@ int as_tri_box_overlap(const float *a, const float *b, const float *c, const flo
         e[1][k] = v[2][k] - v[1][k];
         e[2][k] = v[0][k] - v[2][k];
     }
+    /* The triangle's plane, before the edge axes: cells that the box of a
+     * large triangle reaches but its plane misses are the common case. */
+    {
+        const double nx = e[0][1] * e[1][2] - e[0][2] * e[1][1];
+        const double ny = e[0][2] * e[1][0] - e[0][0] * e[1][2];
+        const double nz = e[0][0] * e[1][1] - e[0][1] * e[1][0];
+        const double d = nx * v[0][0] + ny * v[0][1] + nz * v[0][2];
+        const double r = h[0] * fabs(nx) + h[1] * fabs(ny) + h[2] * fabs(nz);
+        if (fabs(d) > r * (1.0 + 1e-12) + 1e-300) return 0;
+    }
     /* Edge x box-axis cross products. */
     for (int i = 0; i < 3; ++i) {
         for (int k = 0; k < 3; ++k) {
@@ -88,13 +98,6 @@ int as_tri_box_overlap(const float *a, const float *b, const float *c, const flo
             if (axis_separates(p0, p1, p2, r * (1.0 + 1e-12) + 1e-300)) return 0;
         }
     }
-    /* The triangle's plane. */
-    const double nx = e[0][1] * e[1][2] - e[0][2] * e[1][1];
-    const double ny = e[0][2] * e[1][0] - e[0][0] * e[1][2];
-    const double nz = e[0][0] * e[1][1] - e[0][1] * e[1][0];
-    const double d = nx * v[0][0] + ny * v[0][1] + nz * v[0][2];
-    const double r = h[0] * fabs(nx) + h[1] * fabs(ny) + h[2] * fabs(nz);
-    if (fabs(d) > r * (1.0 + 1e-12) + 1e-300) return 0;
     return 1;
 }
 
