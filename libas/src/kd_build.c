@@ -132,8 +132,11 @@ static void clip_ref(const as_mesh_t *m, const kd_ref *old, const float box[6], 
     /* A plane that every vertex is inside of cannot cut the polygon. */
     double tri_lo[3], tri_hi[3];
     for (int k = 0; k < 3; ++k) {
-        tri_lo[k] = fmin(poly[0][0][k], fmin(poly[0][1][k], poly[0][2][k]));
-        tri_hi[k] = fmax(poly[0][0][k], fmax(poly[0][1][k], poly[0][2][k]));
+        /* Plain comparisons: libm's fmin is a call without -ffinite-math-only. */
+        const double p0 = poly[0][0][k], p1 = poly[0][1][k], p2 = poly[0][2][k];
+        const double lo01 = p0 < p1 ? p0 : p1, hi01 = p0 > p1 ? p0 : p1;
+        tri_lo[k] = lo01 < p2 ? lo01 : p2;
+        tri_hi[k] = hi01 > p2 ? hi01 : p2;
     }
     for (int plane = 0; plane < 6 && cnt > 0; ++plane) {
         const int axis = plane % 3, upper = plane >= 3;

@@ -19,8 +19,10 @@
  * merged in. An event is one 64-bit word, (position, kind, reference), so
  * the lists' order is the words' order and a merge compares words. */
 #include "kd_build.h"
+#include "task_pool.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -107,7 +109,41 @@ typedef struct sah_events {
     uint64_t *list[3];
     size_t count[3];
     uint32_t planar[3]; /* planar events per axis */
+    uint32_t depth;     /* of the node */
 } sah_events;
+
+/* The three axes' work runs on threads of its own at the top of the tree,
+ * where there are fewer nodes than threads (the root alone holds every
+ * event): 2^depth < threads. Below that the subtrees keep the threads busy.
+ * The axes' results do not depend on which thread ran them. */
+static unsigned axis_threads(const kd_ctx *c, uint32_t depth)
+{
+    const unsigned threads = as_thread_count(c->args->thread_count);
+    if (threads < 2 || depth >= 8 || (1u << depth) >= threads) return 1;
+    return threads < 3 ? threads : 3;
+}
+
+typedef struct axis_job {
+    void (*fn)(void *user, int axis);
+    void *user;
+} axis_job;
+
+static void axis_job_run(void *user, unsigned i, unsigned n)
+{
+    const axis_job *j = user;
+    for (unsigned a = i; a < 3; a += n) j->fn(j->user, (int)a);
+}
+
+/* fn(user, axis) for the three axes, on `threads` threads. */
+static void for_each_axis(unsigned threads, void (*fn)(void *user, int axis), void *user)
+{
+    if (threads < 2) {
+        for (int a = 0; a < 3; ++a) fn(user, a);
+        return;
+    }
+    axis_job j = {fn, user};
+    as_parallel_run(threads, axis_job_run, &j);
+}
 
 /* Each list has one spare slot: the children's lists are filled by writing
  * every event and advancing only past the kept ones. */
@@ -138,100 +174,144 @@ static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t inde
     return 2;
 }
 
+typedef struct root_job {
+    const kd_ref *refs;
+    uint32_t n;
+    sah_events *e;
+    atomic_int failed;
+} root_job;
+
+static void root_axis_events(void *user, int a)
+{
+    root_job *r = user;
+    uint64_t *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(r->n ? r->n : 1));
+    if (!tmp) {
+        atomic_store(&r->failed, 1);
+        return;
+    }
+    sah_events *e = r->e;
+    size_t m = 0;
+    for (uint32_t i = 0; i < r->n; ++i) m += put_events(e->list[a] + m, &r->refs[i], a, i, &e->planar[a]);
+    sort_events(e->list[a], tmp, m);
+    e->count[a] = m;
+    free(tmp);
+}
+
 static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
 {
-    (void)c;
     if (n > EV_INDEX_MASK) return NULL;
     sah_events *e = events_alloc(2 * (size_t)n);
-    uint64_t *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(n ? n : 1));
-    if (!e || !tmp) {
+    if (!e) return NULL;
+    e->depth = 0;
+    root_job r = {refs, n, e, 0};
+    for_each_axis(axis_threads(c, 0), root_axis_events, &r);
+    if (atomic_load(&r.failed)) {
         free(e);
-        free(tmp);
         return NULL;
     }
-    for (int a = 0; a < 3; ++a) {
-        size_t m = 0;
-        for (uint32_t i = 0; i < n; ++i) m += put_events(e->list[a] + m, &refs[i], a, i, &e->planar[a]);
-        sort_events(e->list[a], tmp, m);
-        e->count[a] = m;
-    }
-    free(tmp);
     return e;
 }
 
-/* The children's lists: the parent's events of references that reach a
- * child unchanged, renumbered (the numbering keeps their order, so the list
- * stays sorted), merged with the sorted events of the clipped ones. One
- * pass over the parent's events feeds both children. */
+/* What the children's lists are made from, shared by the axes. */
+typedef struct child_job {
+    const sah_events *parent;
+    const uint32_t *map;
+    const kd_ref *const *child_refs;
+    sah_events *e[2];
+    const uint32_t *clipped_side[2];
+    size_t nc[2];
+    uint64_t *fresh[3];  /* per axis: the clipped references' events, then the sort's scratch */
+    size_t most;
+} child_job;
+
+/* One axis of both children: the parent's events of references that reach
+ * a child unchanged, renumbered (the numbering keeps their order, so the
+ * list stays sorted), merged with the sorted events of the clipped ones. */
+static void child_axis_events(void *user, int a)
+{
+    child_job *cj = user;
+    sah_events *const *e = cj->e;
+    uint64_t *kept[2] = {e[0]->list[a], e[1]->list[a]};
+    size_t nk[2] = {0, 0};
+    uint32_t planar[2] = {0, 0};
+    const uint64_t *src = cj->parent->list[a];
+    const uint32_t *map = cj->map;
+    for (size_t k = 0; k < cj->parent->count[a]; ++k) {
+        const uint64_t ev = src[k], word = ev & ~(uint64_t)EV_INDEX_MASK;
+        const uint32_t *to = map + 2 * (size_t)event_index(ev);
+        const uint32_t is_planar = event_kind(ev) == EV_PLANAR;
+        const uint32_t keep0 = !(to[0] & KD_REF_CHANGED), keep1 = !(to[1] & KD_REF_CHANGED);
+        /* Written always, kept by advancing: no branch on the side. */
+        kept[0][nk[0]] = word | to[0];
+        kept[1][nk[1]] = word | to[1];
+        nk[0] += keep0;
+        nk[1] += keep1;
+        planar[0] += keep0 & is_planar;
+        planar[1] += keep1 & is_planar;
+    }
+    uint64_t *fresh = cj->fresh[a], *tmp = fresh + 2 * cj->most;
+    for (int side = 0; side < 2; ++side) {
+        sah_events *ce = e[side];
+        ce->planar[a] = planar[side];
+        size_t nf = 0;
+        for (size_t k = 0; k < cj->nc[side]; ++k) {
+            const uint32_t ix = cj->clipped_side[side][k];
+            nf += put_events(fresh + nf, &cj->child_refs[side][ix], a, ix, &ce->planar[a]);
+        }
+        sort_events(fresh, tmp, nf);
+        /* Merge from the back into the same array: the kept events before
+         * the first fresh one are already in place. */
+        uint64_t *o = ce->list[a];
+        size_t i = nk[side], j = nf, w = nk[side] + nf;
+        while (j > 0) {
+            if (i > 0 && o[i - 1] > fresh[j - 1]) o[--w] = o[--i];
+            else o[--w] = fresh[--j];
+        }
+        ce->count[a] = nk[side] + nf;
+    }
+}
+
+/* The children's lists, one pass over the parent's events per axis feeding
+ * both children. */
 static int sah_child_events(const kd_ctx *c, const void *parent_state, const uint32_t *map, uint32_t parent_n,
                             const kd_ref *const child_refs[2], const uint32_t child_n[2], void *out[2])
 {
-    (void)c;
     const sah_events *p = parent_state;
     size_t changed[2] = {0, 0};
     for (size_t i = 0; i < 2 * (size_t)parent_n; ++i)
         changed[i & 1] += map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED);
-    sah_events *e[2] = {events_alloc(2 * (size_t)child_n[0]), events_alloc(2 * (size_t)child_n[1])};
-    /* Per side: the clipped references' child indices, then room for their
-     * events and the sort's scratch. */
-    const size_t most = changed[0] > changed[1] ? changed[0] : changed[1];
+    child_job cj;
+    memset(&cj, 0, sizeof cj);
+    cj.parent = p;
+    cj.map = map;
+    cj.child_refs = child_refs;
+    cj.e[0] = events_alloc(2 * (size_t)child_n[0]);
+    cj.e[1] = events_alloc(2 * (size_t)child_n[1]);
+    cj.most = changed[0] > changed[1] ? changed[0] : changed[1];
+    const unsigned threads = axis_threads(c, p->depth);
+    /* Per side: the clipped references' child indices. */
     uint32_t *clipped = malloc(sizeof(uint32_t) * (changed[0] + changed[1] + 1));
-    uint64_t *fresh = malloc(sizeof(uint64_t) * (4 * most + 1));
-    if (!e[0] || !e[1] || !fresh || !clipped) {
-        free(e[0]);
-        free(e[1]);
+    uint64_t *fresh = malloc(sizeof(uint64_t) * (4 * cj.most + 1) * (threads > 1 ? 3 : 1));
+    if (!cj.e[0] || !cj.e[1] || !fresh || !clipped) {
+        free(cj.e[0]);
+        free(cj.e[1]);
         free(fresh);
         free(clipped);
         out[0] = out[1] = NULL;
         return 0;
     }
-    uint32_t *clipped_side[2] = {clipped, clipped + changed[0]};
-    size_t nc[2] = {0, 0};
+    for (int a = 0; a < 3; ++a) cj.fresh[a] = threads > 1 ? fresh + (size_t)a * (4 * cj.most + 1) : fresh;
+    cj.clipped_side[0] = clipped;
+    cj.clipped_side[1] = clipped + changed[0];
+    uint32_t *side_list[2] = {clipped, clipped + changed[0]};
     for (size_t i = 0; i < 2 * (size_t)parent_n; ++i)
-        if (map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED))
-            clipped_side[i & 1][nc[i & 1]++] = map[i] & ~KD_REF_CHANGED;
-    uint64_t *tmp = fresh + 2 * most;
-    for (int a = 0; a < 3; ++a) {
-        uint64_t *kept[2] = {e[0]->list[a], e[1]->list[a]};
-        size_t nk[2] = {0, 0};
-        uint32_t planar[2] = {0, 0};
-        const uint64_t *src = p->list[a];
-        for (size_t k = 0; k < p->count[a]; ++k) {
-            const uint64_t ev = src[k], word = ev & ~(uint64_t)EV_INDEX_MASK;
-            const uint32_t *to = map + 2 * (size_t)event_index(ev);
-            const uint32_t is_planar = event_kind(ev) == EV_PLANAR;
-            const uint32_t keep0 = !(to[0] & KD_REF_CHANGED), keep1 = !(to[1] & KD_REF_CHANGED);
-            kept[0][nk[0]] = word | to[0];
-            kept[1][nk[1]] = word | to[1];
-            nk[0] += keep0;
-            nk[1] += keep1;
-            planar[0] += keep0 & is_planar;
-            planar[1] += keep1 & is_planar;
-        }
-        for (int side = 0; side < 2; ++side) {
-            sah_events *ce = e[side];
-            ce->planar[a] = planar[side];
-            size_t nf = 0;
-            for (size_t k = 0; k < nc[side]; ++k) {
-                const uint32_t ix = clipped_side[side][k];
-                nf += put_events(fresh + nf, &child_refs[side][ix], a, ix, &ce->planar[a]);
-            }
-            sort_events(fresh, tmp, nf);
-            /* Merge from the back into the same array: the kept events
-             * before the first fresh one are already in place. */
-            uint64_t *o = ce->list[a];
-            size_t i = nk[side], j = nf, w = nk[side] + nf;
-            while (j > 0) {
-                if (i > 0 && o[i - 1] > fresh[j - 1]) o[--w] = o[--i];
-                else o[--w] = fresh[--j];
-            }
-            ce->count[a] = nk[side] + nf;
-        }
-    }
+        if (map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED)) side_list[i & 1][cj.nc[i & 1]++] = map[i] & ~KD_REF_CHANGED;
+    cj.e[0]->depth = cj.e[1]->depth = p->depth + 1;
+    for_each_axis(threads, child_axis_events, &cj);
     free(fresh);
     free(clipped);
-    out[0] = e[0];
-    out[1] = e[1];
+    out[0] = cj.e[0];
+    out[1] = cj.e[1];
     return 1;
 }
 
@@ -241,60 +321,98 @@ static double half_area(const float b[6])
     return dx * dy + dy * dz + dz * dx;
 }
 
+/* The best plane of one axis: the first of the lowest cost below `limit`. */
+typedef struct axis_best {
+    double cost;
+    float pos;
+    int planar_left;
+    int found;
+} axis_best;
+
+typedef struct choose_job {
+    const sah_events *e;
+    const float *box;
+    double ct, ci, area, limit;
+    axis_best best[3];
+} choose_job;
+
+static void sweep_axis(void *user, int axis)
+{
+    choose_job *cj = user;
+    axis_best *b = &cj->best[axis];
+    b->cost = cj->limit;
+    b->found = 0;
+    const float *box = cj->box;
+    if (!(box[axis + 3] > box[axis])) return;
+    const double ct = cj->ct, ci = cj->ci, area = cj->area;
+    const uint64_t *ev = cj->e->list[axis];
+    const size_t m = cj->e->count[axis];
+    const uint32_t p_total = cj->e->planar[axis], np_total = (uint32_t)((m - p_total) / 2);
+    uint32_t s_lt = 0, e_lt = 0, p_lt = 0;
+    /* A side's half area is linear in the plane's position: the face across
+     * the axis plus the perimeter of that face times the side's length
+     * along it. */
+    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
+    const double face = e1 * e2 / area, rim = (e1 + e2) / area;
+    const double lo = box[axis], hi = box[axis + 3];
+    for (size_t i = 0; i < m;) {
+        const uint32_t key = event_key(ev[i]);
+        uint32_t kinds[3] = {0, 0, 0};
+        size_t j = i;
+        do kinds[event_kind(ev[j])]++;
+        while (++j < m && event_key(ev[j]) == key);
+        const uint32_t e_eq = kinds[EV_END], p_eq = kinds[EV_PLANAR], s_eq = kinds[EV_START];
+        const float pos = key_float(key);
+        if (pos > box[axis] && pos < box[axis + 3]) {
+            const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
+            const uint32_t nl0 = s_lt + p_lt, nr0 = (np_total - e_lt - e_eq) + (p_total - p_lt - p_eq);
+            /* Without planar events both sides cost the same. */
+            for (int side = 1; side >= (p_eq ? 0 : 1); --side) {
+                const uint32_t nl = nl0 + (side ? p_eq : 0), nr = nr0 + (side ? 0 : p_eq);
+                const double lambda = (nl == 0 || nr == 0) ? 0.8 : 1.0;
+                const double cost = lambda * (ct + ci * (al * nl + ar * nr));
+                if (cost < b->cost) {
+                    b->cost = cost;
+                    b->pos = pos;
+                    b->planar_left = side;
+                    b->found = 1;
+                }
+            }
+        }
+        s_lt += s_eq;
+        e_lt += e_eq;
+        p_lt += p_eq;
+        i = j;
+    }
+}
+
 static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t n, const float box[6],
                       uint32_t depth, kd_split *out)
 {
     (void)refs;
-    (void)depth;
-    const sah_events *e = state;
-    const double ct = c->args->cost_traversal, ci = c->args->cost_intersection;
-    const double area = half_area(box);
-    if (n <= 1 && ct >= ci) return 0;
-    if (!(area > 0.0)) return 0;
-    double best = ci * (double)n;
+    choose_job cj;
+    cj.e = state;
+    cj.box = box;
+    cj.ct = c->args->cost_traversal;
+    cj.ci = c->args->cost_intersection;
+    cj.area = half_area(box);
+    if (n <= 1 && cj.ct >= cj.ci) return 0;
+    if (!(cj.area > 0.0)) return 0;
+    cj.limit = cj.ci * (double)n;
+    for_each_axis(axis_threads(c, depth), sweep_axis, &cj);
+    /* The axes in order, a later one only when strictly cheaper: the plane
+     * one sweep over all three would keep. */
+    double best = cj.limit;
     int found = 0;
     for (int axis = 0; axis < 3; ++axis) {
-        if (!(box[axis + 3] > box[axis])) continue;
-        const uint64_t *ev = e->list[axis];
-        const size_t m = e->count[axis];
-        const uint32_t p_total = e->planar[axis], np_total = (uint32_t)((m - p_total) / 2);
-        uint32_t s_lt = 0, e_lt = 0, p_lt = 0;
-        /* A side's half area is linear in the plane's position: the face
-         * across the axis plus the perimeter of that face times the side's
-         * length along it. */
-        const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
-        const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
-        const double face = e1 * e2 / area, rim = (e1 + e2) / area;
-        const double lo = box[axis], hi = box[axis + 3];
-        for (size_t i = 0; i < m;) {
-            const uint32_t key = event_key(ev[i]);
-            uint32_t kinds[3] = {0, 0, 0};
-            size_t j = i;
-            do kinds[event_kind(ev[j])]++;
-            while (++j < m && event_key(ev[j]) == key);
-            const uint32_t e_eq = kinds[EV_END], p_eq = kinds[EV_PLANAR], s_eq = kinds[EV_START];
-            const float pos = key_float(key);
-            if (pos > box[axis] && pos < box[axis + 3]) {
-                const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
-                const uint32_t nl0 = s_lt + p_lt, nr0 = (np_total - e_lt - e_eq) + (p_total - p_lt - p_eq);
-                /* Without planar events both sides cost the same. */
-                for (int side = 1; side >= (p_eq ? 0 : 1); --side) {
-                    const uint32_t nl = nl0 + (side ? p_eq : 0), nr = nr0 + (side ? 0 : p_eq);
-                    const double lambda = (nl == 0 || nr == 0) ? 0.8 : 1.0;
-                    const double cost = lambda * (ct + ci * (al * nl + ar * nr));
-                    if (cost < best) {
-                        best = cost;
-                        out->axis = axis;
-                        out->pos = pos;
-                        out->planar_left = side;
-                        found = 1;
-                    }
-                }
-            }
-            s_lt += s_eq;
-            e_lt += e_eq;
-            p_lt += p_eq;
-            i = j;
+        const axis_best *b = &cj.best[axis];
+        if (b->found && b->cost < best) {
+            best = b->cost;
+            out->axis = axis;
+            out->pos = b->pos;
+            out->planar_left = b->planar_left;
+            found = 1;
         }
     }
     return found;
