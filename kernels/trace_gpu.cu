@@ -31,6 +31,9 @@ static_assert(sizeof(device_ray) == sizeof(as_ray_t), "ray record is 32 bytes");
 struct device_counters {
     unsigned long long steps, tests;
     unsigned steps_max, tests_max;
+    // Each ray's steps (device memory, one per ray), or null: a heat map
+    // needs the rays one by one, the summary only the sums.
+    unsigned *ray_steps;
 };
 
 // A traversal the kernels can launch: device pointers to its sections and a
@@ -135,6 +138,7 @@ __device__ __forceinline__ void trace_one(const T &trav, const device_ray *__res
         atomicAdd(&counters->tests, (unsigned long long)ctr.tri_tests);
         atomicMax(&counters->steps_max, ctr.node_visits);
         atomicMax(&counters->tests_max, ctr.tri_tests);
+        if (counters->ray_steps) counters->ray_steps[i] = ctr.node_visits;
     }
 }
 
@@ -345,6 +349,7 @@ as_error_t launch_traversal_flags(const T &trav, const as_gpu_resident_t *g, con
     void *d_rays = nullptr, *d_hits = nullptr;
     unsigned long long *d_next = nullptr;
     device_counters *d_counters = nullptr;
+    unsigned *d_ray_steps = nullptr;
     cudaEvent_t ev0 = nullptr, ev1 = nullptr;
     std::vector<float> times;
     const int block = 128;
@@ -353,7 +358,7 @@ as_error_t launch_traversal_flags(const T &trav, const as_gpu_resident_t *g, con
     int per_sm = 0;
     const unsigned batch = launch->batch ? launch->batch : 32;
     cudaDeviceProp prop;
-    device_counters counters = {0, 0, 0, 0};
+    device_counters counters = {0, 0, 0, 0, nullptr};
     const device_ray *r = nullptr;
     float4 *h = nullptr;
     CUDA_TRY(cudaGetDeviceProperties(&prop, 0), "cudaGetDeviceProperties");
@@ -388,10 +393,16 @@ as_error_t launch_traversal_flags(const T &trav, const as_gpu_resident_t *g, con
         if (run > 0) times.push_back(ms);
     }
     if (launch->collect_stats) {
-        CUDA_TRY(cudaMemset(d_counters, 0, sizeof(device_counters)), "cudaMemset");
+        if (launch->ray_steps)
+            CUDA_TRY(cudaMalloc(&d_ray_steps, count * sizeof(unsigned) + 4), "cudaMalloc per-ray steps");
+        counters.ray_steps = d_ray_steps;
+        CUDA_TRY(cudaMemcpy(d_counters, &counters, sizeof counters, cudaMemcpyHostToDevice), "counter reset");
         kernel_thread_per_ray<T, true, FLAGS><<<grid_all, block>>>(trav, r, h, count, launch->any_hit, d_counters);
         CUDA_TRY(cudaGetLastError(), "statistics kernel launch");
         CUDA_TRY(cudaMemcpy(&counters, d_counters, sizeof counters, cudaMemcpyDeviceToHost), "statistics download");
+        if (d_ray_steps)
+            CUDA_TRY(cudaMemcpy(launch->ray_steps, d_ray_steps, count * sizeof(unsigned), cudaMemcpyDeviceToHost),
+                     "per-ray steps download");
     }
 copy_back:
     CUDA_TRY(cudaMemcpy(hits, d_hits, count * sizeof(as_hit_t), cudaMemcpyDeviceToHost), "download of hits");
@@ -421,6 +432,7 @@ done:
     cudaFree(d_hits);
     cudaFree(d_next);
     cudaFree(d_counters);
+    cudaFree(d_ray_steps);
     if (ev0) cudaEventDestroy(ev0);
     if (ev1) cudaEventDestroy(ev1);
     return err;

@@ -19,6 +19,7 @@ typedef struct as_gpu_launch {
     unsigned batch;              /* persistent: rays per atomic */
     int collect_stats;           /* run the counting kernel too (not timed) */
     int ray_flags;               /* as_ray_prepare flags (AS_RAY_PRECISE) */
+    uint32_t *ray_steps;         /* with collect_stats: host array, each ray's steps, or NULL */
 } as_gpu_launch_t;
 
 /* A structure's sections on the device (or mapped for it in place). */

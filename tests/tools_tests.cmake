@@ -12,6 +12,7 @@ set(_as_cli_tests
   validate_checks_meta_counts_against_arrays
   convert_compress_round_trip
   trace_rays_file_gives_known_hits_and_image
+  trace_heat_map_colours_steps_per_ray
   other_scenes_build_inspect_trace)
 foreach(_t ${_as_cli_tests})
   add_test(NAME cli_${_t}

@@ -45,6 +45,11 @@ static void usage(void)
            "      --hits-out FILE        write the hits (primary or --rays) as a hit file\n"
            "  -i, --image FILE.png       write an image: shaded primary hits, or AO when the\n"
            "                             workload is ao\n"
+           "      --heat-map FILE.png    write a heat map of the traversal steps of each\n"
+           "                             primary ray (viridis: dark purple few, yellow many),\n"
+           "                             counted in the untimed statistics pass\n"
+           "      --heat-max N           steps drawn yellow in the heat map (default: the\n"
+           "                             image's 99th percentile); the scale is printed\n"
            "      --intersector NAME     watertight (default: float, explicitly rounded) or\n"
            "                             watertight-double (exact where float cancels)\n"
            "      --runs N               GPU: timed launches after a warm-up (default 10)\n"
@@ -196,7 +201,8 @@ int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
-           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR };
+           OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
+           OPT_HEAT_MAP, OPT_HEAT_MAX };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -228,6 +234,8 @@ int main(int argc, char **argv)
         {"threads", required_argument, 0, OPT_THREADS},
         {"format", required_argument, 0, 'f'},
         {"no-checksum", no_argument, 0, OPT_NO_CHECKSUM},
+        {"heat-map", required_argument, 0, OPT_HEAT_MAP},
+        {"heat-max", required_argument, 0, OPT_HEAT_MAX},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
         {0, 0, 0, 0},
@@ -240,8 +248,8 @@ int main(int argc, char **argv)
     float eye[3], target[3], up[3] = {0, 1, 0}, fov = 45.0f, lights[3 * 16], ao_radius = 0.1f;
     unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4, bounces = 10;
     int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
-    unsigned width = 1920, height = 1080, u;
-    const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL;
+    unsigned width = 1920, height = 1080, u, heat_max = 0;
+    const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL, *heat_path = NULL;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "d:w:W:H:i:f:hV", opts, NULL)) != -1) {
         switch (c) {
@@ -280,6 +288,8 @@ int main(int argc, char **argv)
         case OPT_RAYS: rays_path = optarg; break;
         case OPT_HITS: hits_path = optarg; break;
         case 'i': image_path = optarg; break;
+        case OPT_HEAT_MAP: heat_path = optarg; break;
+        case OPT_HEAT_MAX: if (!tool_parse_u32(optarg, &heat_max) || !heat_max) return tool_usage_error(TOOL, "--heat-max needs a positive step count, got '%s'", optarg); break;
         case OPT_ANY: any_hit = 1; break;
         case OPT_RUNS: if (!tool_parse_u32(optarg, &u) || !u || u > 1000) return tool_usage_error(TOOL, "--runs needs 1..1000, got '%s'", optarg); targs.timed_runs = u; break;
         case OPT_SCHEDULE:
@@ -333,8 +343,8 @@ int main(int argc, char **argv)
         }
     }
     if (optind != argc - 1) return tool_usage_error(TOOL, "expected one .asf file, got %d", argc - optind);
-    if (rays_path && (image_path || workloads != W_PRIMARY))
-        return tool_usage_error(TOOL, "--rays traces the file's rays: it cannot be used with --image or --workload");
+    if (rays_path && (image_path || heat_path || workloads != W_PRIMARY))
+        return tool_usage_error(TOOL, "--rays traces the file's rays: it cannot be used with --image, --heat-map or --workload");
     if (have_eye != have_target) return tool_usage_error(TOOL, "--eye and --target go together");
     const char *path = argv[optind];
 
@@ -345,7 +355,7 @@ int main(int argc, char **argv)
     int code = EXIT_OK;
     as_ray_t *rays = NULL, *sec = NULL;
     as_hit_t *hits = NULL, *sec_hits = NULL, *pixels = NULL;
-    uint32_t *pixel_of_ray = NULL, *sec_from = NULL;
+    uint32_t *pixel_of_ray = NULL, *sec_from = NULL, *ray_steps = NULL, *heat = NULL, heat_scale = 0;
     float *ao = NULL;
     size_t count = 0, nres = 0;
     run_result res[MAX_RESULTS];
@@ -375,8 +385,22 @@ int main(int argc, char **argv)
     }
     hits = malloc(sizeof *hits * (count ? count : 1));
     if (!hits) { fprintf(stderr, "%s: error: out of memory for %zu hits\n", TOOL, count); code = EXIT_RUNTIME; goto done; }
-    if ((code = trace_one(rays_path ? "file" : "primary", s, rays, count, hits, &targs, rays_path && any_hit, &res[nres++])))
+    as_trace_args_t primary_args = targs;
+    if (heat_path) {
+        ray_steps = malloc(sizeof *ray_steps * (count ? count : 1));
+        heat = malloc(sizeof *heat * (count ? count : 1));
+        if (!ray_steps || !heat) { fprintf(stderr, "%s: error: out of memory for %zu step counts\n", TOOL, count); code = EXIT_RUNTIME; goto done; }
+        primary_args.collect_stats = true;
+        primary_args.ray_steps = ray_steps;
+    }
+    if ((code = trace_one(rays_path ? "file" : "primary", s, rays, count, hits, &primary_args, rays_path && any_hit, &res[nres++])))
         goto done;
+    if (heat_path) {
+        /* The same image code for both devices: only the counts differ in
+         * where they were taken. */
+        for (size_t i = 0; i < count; ++i) heat[pixel_of_ray[i]] = ray_steps[i];
+        if (as_image_write_png_heat(heat_path, width, height, heat, heat_max, &heat_scale) != AS_OK) { code = tool_fail(TOOL); goto done; }
+    }
 
     if (!rays_path && light_count == 0 && (workloads & (W_SHADOW | W_WHITTED))) {
         as_lights_default(st.bounds_lo, st.bounds_hi, lights);
@@ -493,9 +517,15 @@ int main(int argc, char **argv)
         tool_print_json_string(res[0].timing.device_name);
         printf(",\n");
         printf("  \"open_ms\": %.3f,\n  \"validate_ms\": %.3f,\n  \"upload_method\": \"%s\",\n  \"upload_ms\": %.3f,\n"
-               "  \"upload_bytes\": %llu,\n  \"upload_gb_per_s\": %.3f,\n  \"load_ms\": %.3f,\n  \"workloads\": [\n",
+               "  \"upload_bytes\": %llu,\n  \"upload_gb_per_s\": %.3f,\n  \"load_ms\": %.3f,\n",
                t_loaded - t_open, t_validated - t_loaded, gpu ? upinfo.method : "none", upinfo.upload_ms,
                (unsigned long long)upinfo.bytes, upinfo.gb_per_s, t_ready - t_open);
+        if (heat_path) {
+            printf("  \"heat_map\": ");
+            tool_print_json_string(heat_path);
+            printf(",\n  \"heat_max_steps\": %u,\n  \"heat_scale\": \"%s\",\n", heat_scale, heat_max ? "fixed" : "percentile 99");
+        }
+        printf("  \"workloads\": [\n");
         for (size_t i = 0; i < nres; ++i) print_json(&res[i], res[i].any_hit, i + 1 == nres);
         printf("  ]\n}\n");
     } else {
@@ -542,6 +572,9 @@ int main(int argc, char **argv)
         if (e != AS_OK) { code = tool_fail(TOOL); goto done; }
         if (!json) printf("image:     %s\n", image_path);
     }
+    if (heat_path && !json)
+        printf("heat map:  %s: steps per primary ray, 0 dark purple to %u yellow (%s)\n", heat_path, heat_scale,
+               heat_max ? "--heat-max" : "99th percentile");
 done:
     free(rays);
     free(hits);
@@ -551,6 +584,8 @@ done:
     free(pixels);
     free(pixel_of_ray);
     free(ao);
+    free(ray_steps);
+    free(heat);
     as_structure_release(s);
     return code;
 }

@@ -122,3 +122,58 @@ done:
     free(raw);
     return err;
 }
+
+/* Viridis (van der Walt and Smith, matplotlib 2.0) at nine evenly spaced
+ * points: perceptually uniform and readable in grey and by colour-blind
+ * readers, so equal steps of work look like equal steps of colour. */
+static const uint8_t viridis[9][3] = {
+    {68, 1, 84},    {72, 40, 120},  {62, 73, 137},  {49, 104, 142}, {38, 130, 142},
+    {31, 158, 137}, {53, 183, 121}, {110, 206, 88}, {253, 231, 37},
+};
+
+static int cmp_u32(const void *a, const void *b)
+{
+    const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+as_error_t as_image_write_png_heat(const char *path, uint32_t width, uint32_t height, const uint32_t *steps,
+                                   uint32_t scale_max, uint32_t *scale_used)
+{
+    if (!path || !steps || !width || !height)
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_image_write_png_heat: bad argument");
+    const size_t n = (size_t)width * height;
+    uint32_t scale = scale_max;
+    if (!scale) {
+        /* The 99th percentile rather than the maximum: a few rays grazing a
+         * dense corner would otherwise crush the rest of the image into the
+         * bottom of the ramp. */
+        uint32_t *sorted = as_malloc(n * sizeof *sorted, "heat map percentile");
+        if (!sorted) return as_get_error();
+        memcpy(sorted, steps, n * sizeof *sorted);
+        qsort(sorted, n, sizeof *sorted, cmp_u32);
+        const size_t rank = (size_t)ceil(0.99 * (double)n);
+        scale = sorted[rank > 0 ? rank - 1 : 0];
+        free(sorted);
+        if (!scale) scale = 1;
+    }
+    const size_t row = 1 + 3 * (size_t)width;
+    uint8_t *raw = as_malloc(row * height, "image rows");
+    if (!raw) return as_get_error();
+    for (uint32_t y = 0; y < height; ++y) {
+        uint8_t *p = raw + row * y;
+        *p++ = 0;
+        for (uint32_t x = 0; x < width; ++x, p += 3) {
+            const uint32_t v = steps[(size_t)y * width + x];
+            const double f = 8.0 * (v < scale ? (double)v / scale : 1.0);
+            const int k = f >= 8.0 ? 7 : (int)f;
+            const double w = f - k;
+            for (int c = 0; c < 3; ++c)
+                p[c] = (uint8_t)((1.0 - w) * viridis[k][c] + w * viridis[k + 1][c] + 0.5);
+        }
+    }
+    const as_error_t err = write_png_rows(path, width, height, raw);
+    free(raw);
+    if (err == AS_OK && scale_used) *scale_used = scale;
+    return err;
+}

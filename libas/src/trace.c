@@ -3,6 +3,7 @@
 #include "trace_gpu.h"
 #include "ray_triangle.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 void as_trace_args_default(as_trace_args_t *args)
@@ -92,6 +93,62 @@ bool as_gpu_available(void)
 #endif
 }
 
+/* Per-ray steps on the CPU: the layouts' loops sum their counters over the
+ * rays of a call, so each ray goes in a call of its own, and the sums and
+ * maxima are rebuilt from the rays. */
+typedef struct steps_job {
+    const as_structure_t *s;
+    const as_layout_ops_t *ops;
+    const as_ray_t *rays;
+    as_hit_t *hits;
+    size_t count;
+    int any_hit, ray_flags;
+    uint32_t *ray_steps;
+    as_cpu_stats_t *block_stats;
+} steps_job;
+
+#define STEPS_BLOCK 256
+
+static void count_steps_block(void *user, size_t block)
+{
+    const steps_job *job = user;
+    const size_t begin = block * STEPS_BLOCK;
+    const size_t end = begin + STEPS_BLOCK < job->count ? begin + STEPS_BLOCK : job->count;
+    for (size_t i = begin; i < end; ++i) {
+        as_cpu_stats_t one = {0, 0, 0, 0};
+        job->ops->trace_cpu(job->s, job->rays + i, job->hits + i, 1, job->any_hit, job->ray_flags, &one);
+        job->ray_steps[i] = (uint32_t)one.steps;
+        as_cpu_stats_add(&job->block_stats[block], (uint32_t)one.steps, (uint32_t)one.tests);
+    }
+}
+
+static as_error_t count_steps_cpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
+                                  const as_trace_args_t *args, as_trace_timing_t *timing)
+{
+    if (!count) return AS_OK;
+    const size_t blocks = (count + STEPS_BLOCK - 1) / STEPS_BLOCK;
+    steps_job job = {s, as_structure_ops(s), rays, hits, count, args->any_hit,
+                     args->intersector == AS_INTERSECTOR_WATERTIGHT_DOUBLE ? AS_RAY_PRECISE : 0, args->ray_steps,
+                     as_calloc(blocks, sizeof(as_cpu_stats_t), "traversal statistics")};
+    if (!job.block_stats) return as_get_error();
+    as_parallel_for(as_thread_count(args->thread_count), blocks, count_steps_block, &job);
+    as_cpu_stats_t sum = {0, 0, 0, 0};
+    for (size_t b = 0; b < blocks; ++b) {
+        sum.steps += job.block_stats[b].steps;
+        sum.tests += job.block_stats[b].tests;
+        if (job.block_stats[b].steps_max > sum.steps_max) sum.steps_max = job.block_stats[b].steps_max;
+        if (job.block_stats[b].tests_max > sum.tests_max) sum.tests_max = job.block_stats[b].tests_max;
+    }
+    free(job.block_stats);
+    if (!timing) return AS_OK;
+    timing->have_stats = true;
+    timing->steps_avg = (double)sum.steps / (double)count;
+    timing->tests_avg = (double)sum.tests / (double)count;
+    timing->steps_max = sum.steps_max;
+    timing->tests_max = sum.tests_max;
+    return AS_OK;
+}
+
 as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                     const as_trace_args_t *user_args, as_trace_timing_t *timing)
 {
@@ -103,7 +160,13 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
     if (timing) memset(timing, 0, sizeof *timing);
     as_device_t device = args.device;
     if (device == AS_DEVICE_AUTO) device = as_gpu_available() ? AS_DEVICE_GPU : AS_DEVICE_CPU;
-    if (device == AS_DEVICE_CPU) return as_trace_cpu(s, rays, count, hits, &args, timing);
+    if (device == AS_DEVICE_CPU) {
+        if (!args.collect_stats || !args.ray_steps) return as_trace_cpu(s, rays, count, hits, &args, timing);
+        /* The timed pass as usual; the counting pass here, ray by ray. */
+        args.collect_stats = false;
+        const as_error_t err = as_trace_cpu(s, rays, count, hits, &args, timing);
+        return err == AS_OK ? count_steps_cpu(s, rays, count, hits, &args, timing) : err;
+    }
     const as_layout_ops_t *ops = as_structure_ops(s);
     if (!ops->trace_gpu)
         return as_set_error(AS_ERROR_NO_DEVICE, "this build of libas has no CUDA back end for the %s layout",
@@ -120,6 +183,7 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
         args.batch ? args.batch : 32,
         args.collect_stats,
         args.intersector == AS_INTERSECTOR_WATERTIGHT_DOUBLE ? AS_RAY_PRECISE : 0,
+        args.collect_stats ? args.ray_steps : NULL,
     };
     return ops->trace_gpu(s, rays, count, hits, &launch, timing);
 }

@@ -405,6 +405,10 @@ typedef struct as_trace_args {
     uint64_t device_memory_limit; /* GPU: bytes the structure may take in device
                                     memory (0: the device's free memory); beyond
                                     it AS_RESIDENCY_AUTO reads in place */
+    uint32_t *ray_steps;         /* with collect_stats, when not NULL: `count` entries
+                                    the counting pass fills with each ray's steps
+                                    (nodes visited, leaves included), on either
+                                    device; the caller owns the array */
 } as_trace_args_t;
 void as_trace_args_default(as_trace_args_t *args);
 
@@ -639,6 +643,16 @@ as_error_t as_image_write_png(const as_structure_t *s, const as_ray_t *rays,
 /* Writes grey values in [0, 1], row-major, as an 8-bit RGB PNG; a negative
  * value is drawn as the background (dark blue). */
 as_error_t as_image_write_png_grey(const char *path, uint32_t width, uint32_t height, const float *values);
+
+/* Writes a heat map of traversal steps per pixel (`steps`: width * height,
+ * row-major, as as_trace_args_t.ray_steps gives them once put back in pixel
+ * order) as an 8-bit RGB PNG on the viridis ramp: 0 steps dark purple,
+ * `scale_max` steps and more yellow. scale_max 0 scales to the image's 99th
+ * percentile (at least 1) so a few extreme rays do not flatten the rest.
+ * Every pixel is coloured, misses too: a miss costs the steps it took.
+ * The scale used goes to *scale_used when it is not NULL. */
+as_error_t as_image_write_png_heat(const char *path, uint32_t width, uint32_t height, const uint32_t *steps,
+                                   uint32_t scale_max, uint32_t *scale_used);
 
 #ifdef __cplusplus
 }
