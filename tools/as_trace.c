@@ -71,6 +71,11 @@ static void usage(void)
            "                             registered (cudaHostRegister, then copy)\n"
            "      --memory-limit BYTES   GPU: device memory the structure may take (default:\n"
            "                             the free memory)\n"
+           "      --rebuild MESH         also rebuild the structure from MESH (the mesh it was\n"
+           "                             built from: checked by hash) on the CPU with the\n"
+           "                             file's recorded settings and --threads, and print\n"
+           "                             that build time beside the load time and the one\n"
+           "                             recorded in the file\n"
            "      --threads N            CPU threads (default: every core)\n"
            "  -f, --format text|json     output format (default text)\n"
            "      --no-checksum          do not verify section checksums on load\n"
@@ -197,12 +202,61 @@ static void print_json(const run_result *r, bool any_hit, bool last)
     printf("}%s\n", last ? "" : ",");
 }
 
+/* The mesh for --rebuild, imported before the traces so that a wrong one
+ * is refused before any time is spent: it must be the one the structure
+ * was built from. */
+static int rebuild_mesh(const char *mesh_path, const as_structure_stats_t *file, as_mesh_t **out)
+{
+    as_mesh_t *mesh = as_mesh_import(mesh_path);
+    if (!mesh) return tool_fail(TOOL);
+    as_mesh_info_t info;
+    as_mesh_get_info(mesh, &info);
+    if (info.hash != file->source_hash) {
+        as_mesh_release(mesh);
+        fprintf(stderr, "%s: error: %s: not the mesh the structure was built from (hash %016llx, the file "
+                "records %016llx)\n", TOOL, mesh_path, (unsigned long long)info.hash,
+                (unsigned long long)file->source_hash);
+        return EXIT_INVALID_INPUT;
+    }
+    *out = mesh;
+    return EXIT_OK;
+}
+
+/* Builds the structure `file` describes again from its mesh on this CPU,
+ * with the settings the file records, and returns the new build's figures
+ * (its build_ms is timed inside the library, as the recorded one was). */
+static int rebuild(const as_mesh_t *mesh, const as_structure_stats_t *file, unsigned threads,
+                   as_structure_stats_t *out, bool *same)
+{
+    as_build_args_t b;
+    as_build_args_default(&b);
+    b.structure = file->structure;
+    b.builder = file->builder;
+    b.layout = file->layout;
+    b.max_leaf_size = file->max_leaf_size;
+    b.bin_count = file->bin_count;
+    b.cost_traversal = file->cost_traversal;
+    b.cost_intersection = file->cost_intersection;
+    b.thread_count = threads;
+    as_structure_t *s = as_structure_build(mesh, &b);
+    if (!s || as_structure_get_stats(s, out) != AS_OK) {
+        as_structure_release(s);
+        return tool_fail(TOOL);
+    }
+    as_structure_release(s);
+    /* Depth caps, grid density and split budgets are not in the file; the
+     * defaults stand in for them, and the counts say whether they matched. */
+    *same = out->structure_bytes == file->structure_bytes && out->node_count == file->node_count &&
+            out->leaf_count == file->leaf_count && out->reference_count == file->reference_count;
+    return EXIT_OK;
+}
+
 int main(int argc, char **argv)
 {
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
            OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
-           OPT_HEAT_MAP, OPT_HEAT_MAX };
+           OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -236,6 +290,7 @@ int main(int argc, char **argv)
         {"no-checksum", no_argument, 0, OPT_NO_CHECKSUM},
         {"heat-map", required_argument, 0, OPT_HEAT_MAP},
         {"heat-max", required_argument, 0, OPT_HEAT_MAX},
+        {"rebuild", required_argument, 0, OPT_REBUILD},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
         {0, 0, 0, 0},
@@ -249,7 +304,8 @@ int main(int argc, char **argv)
     unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4, bounces = 10;
     int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
     unsigned width = 1920, height = 1080, u, heat_max = 0;
-    const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL, *heat_path = NULL;
+    const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL, *heat_path = NULL,
+               *rebuild_path = NULL;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "d:w:W:H:i:f:hV", opts, NULL)) != -1) {
         switch (c) {
@@ -289,6 +345,7 @@ int main(int argc, char **argv)
         case OPT_HITS: hits_path = optarg; break;
         case 'i': image_path = optarg; break;
         case OPT_HEAT_MAP: heat_path = optarg; break;
+        case OPT_REBUILD: rebuild_path = optarg; break;
         case OPT_HEAT_MAX: if (!tool_parse_u32(optarg, &heat_max) || !heat_max) return tool_usage_error(TOOL, "--heat-max needs a positive step count, got '%s'", optarg); break;
         case OPT_ANY: any_hit = 1; break;
         case OPT_RUNS: if (!tool_parse_u32(optarg, &u) || !u || u > 1000) return tool_usage_error(TOOL, "--runs needs 1..1000, got '%s'", optarg); targs.timed_runs = u; break;
@@ -357,6 +414,7 @@ int main(int argc, char **argv)
     as_hit_t *hits = NULL, *sec_hits = NULL, *pixels = NULL;
     uint32_t *pixel_of_ray = NULL, *sec_from = NULL, *ray_steps = NULL, *heat = NULL, heat_scale = 0;
     float *ao = NULL;
+    as_mesh_t *source_mesh = NULL;
     size_t count = 0, nres = 0;
     run_result res[MAX_RESULTS];
     as_camera_t cam;
@@ -370,6 +428,7 @@ int main(int argc, char **argv)
     const bool gpu = targs.device == AS_DEVICE_GPU || (targs.device == AS_DEVICE_AUTO && as_gpu_available());
     if (gpu && as_structure_upload(s, &targs, &upinfo) != AS_OK) { code = tool_fail(TOOL); goto done; }
     const double t_ready = as_now_ms_tool();
+    if (rebuild_path && (code = rebuild_mesh(rebuild_path, &st, &source_mesh))) goto done;
     if (rays_path) {
         if (as_rays_read(rays_path, &rays, &count) != AS_OK) { code = tool_fail(TOOL); goto done; }
     } else {
@@ -510,6 +569,13 @@ int main(int argc, char **argv)
         }
     }
 
+    /* After the traces, so that the build's threads do not disturb them. */
+    as_structure_stats_t rebuilt;
+    memset(&rebuilt, 0, sizeof rebuilt);
+    bool same_structure = false;
+    if (rebuild_path && (code = rebuild(source_mesh, &st, targs.thread_count, &rebuilt, &same_structure)))
+        goto done;
+
     if (json) {
         printf("{\n  \"file\": ");
         tool_print_json_string(path);
@@ -524,6 +590,19 @@ int main(int argc, char **argv)
             printf("  \"heat_map\": ");
             tool_print_json_string(heat_path);
             printf(",\n  \"heat_max_steps\": %u,\n  \"heat_scale\": \"%s\",\n", heat_scale, heat_max ? "fixed" : "percentile 99");
+        }
+        if (st.build_threads)
+            printf("  \"rebuild_recorded_ms\": %.3f,\n  \"rebuild_recorded_threads\": %u,\n", st.build_ms, st.build_threads);
+        else
+            printf("  \"rebuild_recorded_ms\": null,\n  \"rebuild_recorded_threads\": null,\n");
+        if (rebuild_path) {
+            printf("  \"rebuild_mesh\": ");
+            tool_print_json_string(rebuild_path);
+            printf(",\n  \"rebuild_measured_ms\": %.3f,\n  \"rebuild_measured_threads\": %u,\n"
+                   "  \"rebuild_same_structure\": %s,\n", rebuilt.build_ms, rebuilt.build_threads,
+                   same_structure ? "true" : "false");
+        } else {
+            printf("  \"rebuild_measured_ms\": null,\n");
         }
         printf("  \"workloads\": [\n");
         for (size_t i = 0; i < nres; ++i) print_json(&res[i], res[i].any_hit, i + 1 == nres);
@@ -540,6 +619,17 @@ int main(int argc, char **argv)
         if (gpu)
             printf(", %s %.1f: %llu bytes at %.2f GB/s", upinfo.method, upinfo.upload_ms, (unsigned long long)upinfo.bytes, upinfo.gb_per_s);
         printf(")\n");
+        if (rebuild_path) {
+            printf("rebuild:   ");
+            if (st.build_threads)
+                printf("%.1f ms on %u thread%s as recorded in the file", st.build_ms, st.build_threads,
+                       st.build_threads == 1 ? "" : "s");
+            else
+                printf("not recorded in the file");
+            printf("; %.1f ms on %u thread%s measured now from %s (%s)\n", rebuilt.build_ms, rebuilt.build_threads,
+                   rebuilt.build_threads == 1 ? "" : "s", rebuild_path, same_structure ? "the same structure" : "a different structure: the file's build "
+                   "had settings the file does not record");
+        }
         for (size_t i = 0; i < nres; ++i) print_text(&res[i], res[i].any_hit);
         printf("Mrays/s:   %.2f (%s)\n", mrays(&res[0]), res[0].name);
     }
@@ -586,6 +676,7 @@ done:
     free(ao);
     free(ray_steps);
     free(heat);
+    as_mesh_release(source_mesh);
     as_structure_release(s);
     return code;
 }
