@@ -109,17 +109,18 @@ typedef struct sah_events {
     uint64_t *list[3];
     size_t count[3];
     uint32_t planar[3]; /* planar events per axis */
-    uint32_t depth;     /* of the node */
+    uint32_t root_n;    /* references at the root */
 } sah_events;
 
-/* The three axes' work runs on threads of its own at the top of the tree,
- * where there are fewer nodes than threads (the root alone holds every
- * event): 2^depth < threads. Below that the subtrees keep the threads busy.
- * The axes' results do not depend on which thread ran them. */
-static unsigned axis_threads(const kd_ctx *c, uint32_t depth)
+/* The three axes' work runs on threads of its own in a node that holds
+ * more than a thread's share of the root's references: the root, and the
+ * big child of an uneven split (an empty-space cut near the root leaves
+ * nearly everything on one side), where the other subtrees cannot keep the
+ * threads busy. The axes' results do not depend on which thread ran them. */
+static unsigned axis_threads(const kd_ctx *c, const sah_events *e, uint32_t n)
 {
     const unsigned threads = as_thread_count(c->args->thread_count);
-    if (threads < 2 || depth >= 8 || (1u << depth) >= threads) return 1;
+    if (threads < 2 || (uint64_t)n * threads <= e->root_n) return 1;
     return threads < 3 ? threads : 3;
 }
 
@@ -202,9 +203,9 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
     if (n > EV_INDEX_MASK) return NULL;
     sah_events *e = events_alloc(2 * (size_t)n);
     if (!e) return NULL;
-    e->depth = 0;
+    e->root_n = n;
     root_job r = {refs, n, e, 0};
-    for_each_axis(axis_threads(c, 0), root_axis_events, &r);
+    for_each_axis(axis_threads(c, e, n), root_axis_events, &r);
     if (atomic_load(&r.failed)) {
         free(e);
         return NULL;
@@ -288,7 +289,7 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, const uin
     cj.e[0] = events_alloc(2 * (size_t)child_n[0]);
     cj.e[1] = events_alloc(2 * (size_t)child_n[1]);
     cj.most = changed[0] > changed[1] ? changed[0] : changed[1];
-    const unsigned threads = axis_threads(c, p->depth);
+    const unsigned threads = axis_threads(c, p, parent_n);
     /* Per side: the clipped references' child indices. */
     uint32_t *clipped = malloc(sizeof(uint32_t) * (changed[0] + changed[1] + 1));
     uint64_t *fresh = malloc(sizeof(uint64_t) * (4 * cj.most + 1) * (threads > 1 ? 3 : 1));
@@ -306,7 +307,7 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, const uin
     uint32_t *side_list[2] = {clipped, clipped + changed[0]};
     for (size_t i = 0; i < 2 * (size_t)parent_n; ++i)
         if (map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED)) side_list[i & 1][cj.nc[i & 1]++] = map[i] & ~KD_REF_CHANGED;
-    cj.e[0]->depth = cj.e[1]->depth = p->depth + 1;
+    cj.e[0]->root_n = cj.e[1]->root_n = p->root_n;
     for_each_axis(threads, child_axis_events, &cj);
     free(fresh);
     free(clipped);
@@ -391,6 +392,7 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
                       uint32_t depth, kd_split *out)
 {
     (void)refs;
+    (void)depth;
     choose_job cj;
     cj.e = state;
     cj.box = box;
@@ -400,7 +402,7 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
     if (n <= 1 && cj.ct >= cj.ci) return 0;
     if (!(cj.area > 0.0)) return 0;
     cj.limit = cj.ci * (double)n;
-    for_each_axis(axis_threads(c, depth), sweep_axis, &cj);
+    for_each_axis(axis_threads(c, cj.e, n), sweep_axis, &cj);
     /* The axes in order, a later one only when strictly cheaper: the plane
      * one sweep over all three would keep. */
     double best = cj.limit;
