@@ -14,6 +14,7 @@ set(_as_cli_tests
   trace_rays_file_gives_known_hits_and_image
   trace_heat_map_colours_steps_per_ray
   trace_rebuild_beside_load
+  trace_whitted_materials_from_mtl
   other_scenes_build_inspect_trace)
 foreach(_t ${_as_cli_tests})
   add_test(NAME cli_${_t}

@@ -21,7 +21,12 @@ static void usage(void)
            "                             all; secondary rays start at the primary hits.\n"
            "                             whitted: reflections and refractions up to\n"
            "                             --bounces (10), hard shadows at every hit; 10%% of\n"
-           "                             the triangles mirrors, 5%% glass (ior 1.5), seeded\n"
+           "                             the triangles mirrors, 5%% glass (ior 1.5), seeded,\n"
+           "                             unless --materials gives them\n"
+           "      --materials MESH.obj   whitted: each triangle's material from the OBJ the\n"
+           "                             structure was built from and the .mtl files it\n"
+           "                             names (mirror: illum 3/5 or Ks >= 0.8; glass: d < 1\n"
+           "                             or illum 4/6/7/9, ior from Ni)\n"
            "      --eye X,Y,Z            camera position\n"
            "      --target X,Y,Z         point the camera looks at\n"
            "      --up X,Y,Z             up vector (default 0,1,0)\n"
@@ -202,10 +207,10 @@ static void print_json(const run_result *r, bool any_hit, bool last)
     printf("}%s\n", last ? "" : ",");
 }
 
-/* The mesh for --rebuild, imported before the traces so that a wrong one
- * is refused before any time is spent: it must be the one the structure
- * was built from. */
-static int rebuild_mesh(const char *mesh_path, const as_structure_stats_t *file, as_mesh_t **out)
+/* The mesh of --rebuild or --materials, imported before the traces so that
+ * a wrong one is refused before any time is spent: it must be the one the
+ * structure was built from. */
+static int source_mesh_import(const char *mesh_path, const as_structure_stats_t *file, as_mesh_t **out)
 {
     as_mesh_t *mesh = as_mesh_import(mesh_path);
     if (!mesh) return tool_fail(TOOL);
@@ -256,7 +261,8 @@ int main(int argc, char **argv)
     enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
            OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
-           OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD };
+           OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD,
+           OPT_MATERIALS };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -291,6 +297,7 @@ int main(int argc, char **argv)
         {"heat-map", required_argument, 0, OPT_HEAT_MAP},
         {"heat-max", required_argument, 0, OPT_HEAT_MAX},
         {"rebuild", required_argument, 0, OPT_REBUILD},
+        {"materials", required_argument, 0, OPT_MATERIALS},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
         {0, 0, 0, 0},
@@ -305,7 +312,7 @@ int main(int argc, char **argv)
     int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
     unsigned width = 1920, height = 1080, u, heat_max = 0;
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL, *heat_path = NULL,
-               *rebuild_path = NULL;
+               *rebuild_path = NULL, *materials_path = NULL;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "d:w:W:H:i:f:hV", opts, NULL)) != -1) {
         switch (c) {
@@ -346,6 +353,7 @@ int main(int argc, char **argv)
         case 'i': image_path = optarg; break;
         case OPT_HEAT_MAP: heat_path = optarg; break;
         case OPT_REBUILD: rebuild_path = optarg; break;
+        case OPT_MATERIALS: materials_path = optarg; break;
         case OPT_HEAT_MAX: if (!tool_parse_u32(optarg, &heat_max) || !heat_max) return tool_usage_error(TOOL, "--heat-max needs a positive step count, got '%s'", optarg); break;
         case OPT_ANY: any_hit = 1; break;
         case OPT_RUNS: if (!tool_parse_u32(optarg, &u) || !u || u > 1000) return tool_usage_error(TOOL, "--runs needs 1..1000, got '%s'", optarg); targs.timed_runs = u; break;
@@ -402,6 +410,8 @@ int main(int argc, char **argv)
     if (optind != argc - 1) return tool_usage_error(TOOL, "expected one .asf file, got %d", argc - optind);
     if (rays_path && (image_path || heat_path || workloads != W_PRIMARY))
         return tool_usage_error(TOOL, "--rays traces the file's rays: it cannot be used with --image, --heat-map or --workload");
+    if (materials_path && !(workloads & W_WHITTED))
+        return tool_usage_error(TOOL, "--materials gives the whitted workload's materials: use it with -w whitted or all");
     if (have_eye != have_target) return tool_usage_error(TOOL, "--eye and --target go together");
     const char *path = argv[optind];
 
@@ -415,6 +425,8 @@ int main(int argc, char **argv)
     uint32_t *pixel_of_ray = NULL, *sec_from = NULL, *ray_steps = NULL, *heat = NULL, heat_scale = 0;
     float *ao = NULL;
     as_mesh_t *source_mesh = NULL;
+    as_material_t *materials = NULL;
+    uint32_t material_count = 0, material_kinds[3] = {0, 0, 0};
     size_t count = 0, nres = 0;
     run_result res[MAX_RESULTS];
     as_camera_t cam;
@@ -428,7 +440,18 @@ int main(int argc, char **argv)
     const bool gpu = targs.device == AS_DEVICE_GPU || (targs.device == AS_DEVICE_AUTO && as_gpu_available());
     if (gpu && as_structure_upload(s, &targs, &upinfo) != AS_OK) { code = tool_fail(TOOL); goto done; }
     const double t_ready = as_now_ms_tool();
-    if (rebuild_path && (code = rebuild_mesh(rebuild_path, &st, &source_mesh))) goto done;
+    if (rebuild_path && (code = source_mesh_import(rebuild_path, &st, &source_mesh))) goto done;
+    if (materials_path) {
+        /* The .asf keeps no materials: they come from the OBJ (its usemtl
+         * per triangle, its .mtl files), checked to be the structure's mesh. */
+        as_mesh_t *obj = NULL;
+        if ((code = source_mesh_import(materials_path, &st, &obj))) goto done;
+        const as_error_t e = as_materials_read_obj(materials_path, obj, &materials, &material_count);
+        as_mesh_release(obj);
+        if (e != AS_OK) { code = tool_fail(TOOL); goto done; }
+        for (uint32_t t = 0; t < material_count; ++t)
+            ++material_kinds[materials[t].kind <= AS_MATERIAL_GLASS ? materials[t].kind : AS_MATERIAL_OPAQUE];
+    }
     if (rays_path) {
         if (as_rays_read(rays_path, &rays, &count) != AS_OK) { code = tool_fail(TOOL); goto done; }
     } else {
@@ -512,6 +535,8 @@ int main(int argc, char **argv)
         as_whitted_args_default(&wa);
         wa.lights = lights;
         wa.light_count = light_count;
+        wa.materials = materials;
+        wa.material_count = material_count;
         const as_ray_t *cur = rays;
         const as_hit_t *cur_hits = hits;
         size_t cur_n = count;
@@ -604,6 +629,12 @@ int main(int argc, char **argv)
         } else {
             printf("  \"rebuild_measured_ms\": null,\n");
         }
+        if (materials_path) {
+            printf("  \"materials\": ");
+            tool_print_json_string(materials_path);
+            printf(",\n  \"opaque_triangles\": %u,\n  \"mirror_triangles\": %u,\n  \"glass_triangles\": %u,\n",
+                   material_kinds[AS_MATERIAL_OPAQUE], material_kinds[AS_MATERIAL_MIRROR], material_kinds[AS_MATERIAL_GLASS]);
+        }
         printf("  \"workloads\": [\n");
         for (size_t i = 0; i < nres; ++i) print_json(&res[i], res[i].any_hit, i + 1 == nres);
         printf("  ]\n}\n");
@@ -630,6 +661,9 @@ int main(int argc, char **argv)
                    rebuilt.build_threads == 1 ? "" : "s", rebuild_path, same_structure ? "the same structure" : "a different structure: the file's build "
                    "had settings the file does not record");
         }
+        if (materials_path)
+            printf("materials: %s: %u mirror, %u glass, %u opaque triangles, from its material files\n", materials_path,
+                   material_kinds[AS_MATERIAL_MIRROR], material_kinds[AS_MATERIAL_GLASS], material_kinds[AS_MATERIAL_OPAQUE]);
         for (size_t i = 0; i < nres; ++i) print_text(&res[i], res[i].any_hit);
         printf("Mrays/s:   %.2f (%s)\n", mrays(&res[0]), res[0].name);
     }
@@ -677,6 +711,7 @@ done:
     free(ray_steps);
     free(heat);
     as_mesh_release(source_mesh);
+    free(materials);
     as_structure_release(s);
     return code;
 }

@@ -251,6 +251,7 @@ void as_whitted_args_default(as_whitted_args_t *args)
 
 int as_whitted_material(const as_whitted_args_t *args, uint32_t prim)
 {
+    if (args->materials) return prim < args->material_count ? (int)args->materials[prim].kind : AS_MATERIAL_OPAQUE;
     const double u = hash01(args->seed, prim, 0x57);
     if (u < args->mirror_fraction) return 1;
     if (u < (double)args->mirror_fraction + args->glass_fraction) return 2;
@@ -276,6 +277,10 @@ as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays,
     as_whitted_args_t args;
     as_whitted_args_default(&args);
     if (user_args) memcpy(&args, user_args, user_args->size < sizeof args ? user_args->size : sizeof args);
+    if (args.materials && args.material_count != s->meta.triangle_count)
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT,
+                            "as_rays_whitted_bounce: %u materials for a structure of %u triangles",
+                            args.material_count, s->meta.triangle_count);
     const as_tri4_t **map = as_structure_triangles_by_prim(s);
     if (!map) return as_get_error();
     const size_t hit_count = count_hits(hits, count);
@@ -322,7 +327,9 @@ as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays,
             const double wn[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
                                   e1[0] * e2[1] - e1[1] * e2[0]};
             const int entering = wn[0] * d[0] + wn[1] * d[1] + wn[2] * d[2] < 0;
-            const double eta = entering ? 1.0 / args.ior : args.ior;
+            const double ior = args.materials && args.materials[hits[i].prim].ior > 0
+                                   ? args.materials[hits[i].prim].ior : args.ior;
+            const double eta = entering ? 1.0 / ior : ior;
             const double k2 = 1.0 - eta * eta * (1.0 - cosi * cosi);
             if (k2 >= 0) {
                 const double c = eta * cosi - sqrt(k2);

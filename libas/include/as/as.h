@@ -596,13 +596,47 @@ as_error_t as_rays_shadow(const as_structure_t *s, const as_ray_t *primary, cons
                           float offset_fraction, as_ray_t **out, size_t *out_count,
                           uint32_t **origin);
 
+/* A triangle's material for Whitted ray tracing. */
+typedef enum as_material_kind {
+    AS_MATERIAL_OPAQUE = 0,      /* shadow rays only */
+    AS_MATERIAL_MIRROR = 1,      /* and a reflection ray */
+    AS_MATERIAL_GLASS = 2        /* and a reflection and a refraction ray */
+} as_material_kind_t;
+
+typedef struct as_material {
+    uint32_t kind;               /* as_material_kind_t */
+    float ior;                   /* glass: index of refraction; 0: as_whitted_args_t.ior */
+} as_material_t;
+
+/* The Whitted materials of an OBJ file's triangles, from its material
+ * library: `mesh` is the OBJ imported by as_mesh_import (its per-triangle
+ * material ids say which `usemtl` was in force), `obj_path` the same file,
+ * which is scanned for its `mtllib` and `usemtl` statements. The rule, per
+ * material: glass when its dissolve is below 1 (`d` < 1, or `Tr` > 0) or
+ * `illum` is 4, 6, 7 or 9, with `Ni` as the index of refraction when given;
+ * else a mirror when `illum` is 3 or 5 or every component of `Ks` is at
+ * least 0.8; else opaque. Triangles before any `usemtl` are opaque.
+ * Only the libraries the OBJ names are read, each relative to the OBJ's
+ * directory: an absolute name, a ".." component, or anything but a regular
+ * file (a FIFO, a device, a directory) is refused. *out (malloc'd, one per
+ * triangle of `mesh`, by index; free() it) and *count are set on success.
+ * Fails with FILE_NOT_FOUND or IO for a library that cannot be read, PARSE
+ * for a malformed statement, a `usemtl` naming a material no library
+ * defines, or an OBJ without `mtllib` (messages name the file and line),
+ * INVALID_ARGUMENT when `mesh` does not come from that OBJ (its material
+ * ids or triangle count disagree with the file), UNSUPPORTED for a
+ * compressed OBJ. */
+as_error_t as_materials_read_obj(const char *obj_path, const as_mesh_t *mesh, as_material_t **out,
+                                 uint32_t *count);
+
 /* Whitted ray tracing, one bounce at a time: from rays and their hits, the
  * next bounce's reflection and refraction rays and the shadow rays of the
- * hits. Without a material file, a fixed, seeded share of the triangles
- * are mirrors and glass (index of refraction `ior`), the rest opaque:
- * opaque hits spawn shadow rays only, mirrors a reflection ray too, glass a
- * refraction and a reflection ray (the reflection alone on total internal
- * reflection). */
+ * hits. With `materials` (from the mesh's material file: see
+ * as_materials_read_obj), each triangle's own; without, a fixed, seeded
+ * share of the triangles are mirrors and glass (index of refraction `ior`),
+ * the rest opaque: opaque hits spawn shadow rays only, mirrors a reflection
+ * ray too, glass a refraction and a reflection ray (the reflection alone on
+ * total internal reflection). */
 typedef struct as_whitted_args {
     size_t size;
     float mirror_fraction;       /* default 0.10 */
@@ -612,18 +646,24 @@ typedef struct as_whitted_args {
     float offset_fraction;       /* as in as_secondary_args_t (default 1e-4) */
     const float *lights;         /* 3 floats per point light */
     uint32_t light_count;
+    const as_material_t *materials; /* one per triangle by source index, used instead of
+                                    the seeded fractions when not NULL (default NULL);
+                                    the caller keeps it alive through the bounces */
+    uint32_t material_count;     /* entries in `materials`: the structure's triangle count */
 } as_whitted_args_t;
 void as_whitted_args_default(as_whitted_args_t *args);
 
 /* The material of a triangle under these arguments: 0 opaque, 1 mirror,
- * 2 glass. */
+ * 2 glass (as_material_kind_t); with `materials`, that triangle's (opaque
+ * past material_count), else the seeded default. */
 int as_whitted_material(const as_whitted_args_t *args, uint32_t prim);
 
 /* One Whitted bounce: for every hit of `rays`, a shadow ray to each light
  * (into *shadow) and, on mirrors and glass, the reflection and refraction
  * rays (into *next), each leaving the surface by the offset on its own
  * side. Both arrays are allocated here (free() them) and may be empty;
- * missed rays make none. */
+ * missed rays make none. INVALID_ARGUMENT when `materials` is set and
+ * material_count is not the structure's triangle count. */
 as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays, const as_hit_t *hits,
                                   size_t count, const as_whitted_args_t *args, as_ray_t **next,
                                   size_t *next_count, as_ray_t **shadow, size_t *shadow_count);
