@@ -15,6 +15,7 @@ set(_as_cli_tests
   trace_heat_map_colours_steps_per_ray
   trace_rebuild_beside_load
   trace_whitted_materials_from_mtl
+  trace_validation_record_skips_known_files
   other_scenes_build_inspect_trace)
 foreach(_t ${_as_cli_tests})
   add_test(NAME cli_${_t}

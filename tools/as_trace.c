@@ -84,9 +84,13 @@ static void usage(void)
            "      --threads N            CPU threads (default: every core)\n"
            "  -f, --format text|json     output format (default text)\n"
            "      --no-checksum          do not verify section checksums on load\n"
+           "      --validation-record F  skip validation of a file whose fingerprint (XXH3-128\n"
+           "                             of its sections) F lists, and add the fingerprint of\n"
+           "                             one that passes; only for files and records you trust\n"
            "  -h, --help                 this help\n"
            "  -V, --version              the version\n\n"
-           "The structure is always validated before a ray is traced. Times: GPU, the median\n"
+           "The structure is validated before a ray is traced (once per fingerprint with\n"
+           "--validation-record). Times: GPU, the median\n"
            "of the timed launches measured with device events around the kernel alone (rays\n"
            "already on the device); CPU, wall clock of the trace.\n\n" TOOL_EXIT_CODES_HELP,
            TOOL);
@@ -262,7 +266,7 @@ int main(int argc, char **argv)
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
            OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
            OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD,
-           OPT_MATERIALS };
+           OPT_MATERIALS, OPT_VALIDATION_RECORD };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -298,6 +302,7 @@ int main(int argc, char **argv)
         {"heat-max", required_argument, 0, OPT_HEAT_MAX},
         {"rebuild", required_argument, 0, OPT_REBUILD},
         {"materials", required_argument, 0, OPT_MATERIALS},
+        {"validation-record", required_argument, 0, OPT_VALIDATION_RECORD},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
         {0, 0, 0, 0},
@@ -312,7 +317,7 @@ int main(int argc, char **argv)
     int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
     unsigned width = 1920, height = 1080, u, heat_max = 0;
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL, *heat_path = NULL,
-               *rebuild_path = NULL, *materials_path = NULL;
+               *rebuild_path = NULL, *materials_path = NULL, *record_path = NULL;
     opterr = 0;
     while ((c = getopt_long(argc, argv, "d:w:W:H:i:f:hV", opts, NULL)) != -1) {
         switch (c) {
@@ -354,6 +359,7 @@ int main(int argc, char **argv)
         case OPT_HEAT_MAP: heat_path = optarg; break;
         case OPT_REBUILD: rebuild_path = optarg; break;
         case OPT_MATERIALS: materials_path = optarg; break;
+        case OPT_VALIDATION_RECORD: record_path = optarg; break;
         case OPT_HEAT_MAX: if (!tool_parse_u32(optarg, &heat_max) || !heat_max) return tool_usage_error(TOOL, "--heat-max needs a positive step count, got '%s'", optarg); break;
         case OPT_ANY: any_hit = 1; break;
         case OPT_RUNS: if (!tool_parse_u32(optarg, &u) || !u || u > 1000) return tool_usage_error(TOOL, "--runs needs 1..1000, got '%s'", optarg); targs.timed_runs = u; break;
@@ -432,8 +438,13 @@ int main(int argc, char **argv)
     as_camera_t cam;
     as_structure_stats_t st;
     /* Always: a kernel must never read a file that could send it out of
-     * bounds, and validation costs one linear pass. */
-    if (as_structure_validate(s) != AS_OK || as_structure_get_stats(s, &st) != AS_OK) { code = tool_fail(TOOL); goto done; }
+     * bounds, and validation costs one linear pass (or, for a file the
+     * record vouches for, one hash of its bytes). */
+    as_validation_info_t vinfo;
+    if (as_structure_validate_recorded(s, record_path, &vinfo) != AS_OK || as_structure_get_stats(s, &st) != AS_OK) {
+        code = tool_fail(TOOL);
+        goto done;
+    }
     const double t_validated = as_now_ms_tool();
     as_upload_info_t upinfo;
     memset(&upinfo, 0, sizeof upinfo);
@@ -611,6 +622,12 @@ int main(int argc, char **argv)
                "  \"upload_bytes\": %llu,\n  \"upload_gb_per_s\": %.3f,\n  \"load_ms\": %.3f,\n",
                t_loaded - t_open, t_validated - t_loaded, gpu ? upinfo.method : "none", upinfo.upload_ms,
                (unsigned long long)upinfo.bytes, upinfo.gb_per_s, t_ready - t_open);
+        if (record_path) {
+            printf("  \"validation_record\": ");
+            tool_print_json_string(record_path);
+            printf(",\n  \"validation\": \"%s\",\n  \"fingerprint_ms\": %.3f,\n", vinfo.skipped ? "skipped" : "done",
+                   vinfo.fingerprint_ms);
+        }
         if (heat_path) {
             printf("  \"heat_map\": ");
             tool_print_json_string(heat_path);
@@ -645,8 +662,13 @@ int main(int argc, char **argv)
                    (double)cam.target[2], (double)cam.up[0], (double)cam.up[1], (double)cam.up[2],
                    (double)cam.fov_y_degrees, width, height);
         printf("device:    %s %s\n", res[0].timing.device == AS_DEVICE_GPU ? "gpu" : "cpu", res[0].timing.device_name);
-        printf("load:      %.1f ms from open to ready (open and checks %.1f, validation %.1f", t_ready - t_open,
-               t_loaded - t_open, t_validated - t_loaded);
+        printf("load:      %.1f ms from open to ready (open and checks %.1f, ", t_ready - t_open, t_loaded - t_open);
+        if (!record_path)
+            printf("validation %.1f", t_validated - t_loaded);
+        else if (vinfo.skipped)
+            printf("validation skipped: fingerprint %.1f, listed in %s", vinfo.fingerprint_ms, record_path);
+        else
+            printf("validation %.1f, fingerprint %.1f, added to %s", vinfo.validate_ms, vinfo.fingerprint_ms, record_path);
         if (gpu)
             printf(", %s %.1f: %llu bytes at %.2f GB/s", upinfo.method, upinfo.upload_ms, (unsigned long long)upinfo.bytes, upinfo.gb_per_s);
         printf(")\n");

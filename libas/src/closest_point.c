@@ -319,7 +319,7 @@ as_error_t as_closest_points(const as_structure_t *s, const float *points, size_
     /* The walk follows child indices and leaf ranges: only a valid tree may
      * be walked. */
     if (!args.assume_valid) {
-        const as_error_t err = as_structure_validate(s);
+        const as_error_t err = as_structure_check_valid(s);
         if (err != AS_OK) return err;
     }
     closest_job_t job;

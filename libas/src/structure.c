@@ -393,12 +393,18 @@ as_error_t as_structure_validate(const as_structure_t *s)
     return as_structure_ops(s)->validate(s, s->file ? asf_name(s->file) : "(built structure)");
 }
 
+as_error_t as_structure_check_valid(const as_structure_t *s)
+{
+    if (s && atomic_load(&s->validated)) return AS_OK;
+    return as_structure_validate(s);
+}
+
 as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *st)
 {
     if (!s || !st) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_get_stats: NULL argument");
     memset(st, 0, sizeof *st);
     /* The walk below follows child indices: only a valid tree may be walked. */
-    const as_error_t err = as_structure_validate(s);
+    const as_error_t err = as_structure_check_valid(s);
     if (err != AS_OK) return err;
     st->structure = (as_structure_kind_t)s->meta.structure_kind;
     st->layout = (as_layout_t)s->meta.layout;

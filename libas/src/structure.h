@@ -4,6 +4,8 @@
 #define AS_STRUCTURE_H
 
 #include "as_internal.h"
+
+#include <stdatomic.h>
 #include "asf_container.h"
 #include "asf_format.h"
 
@@ -28,7 +30,17 @@ struct as_structure {
     double build_ms;              /* when built; files do not store it */
     as_build_record_t record;     /* BREC: set by a build or read from the file */
     int has_record;
+    /* Set by as_structure_validate_recorded once the structure passed (or
+     * its fingerprint was in the caller's record): later walks need not
+     * validate again. Plain as_structure_validate leaves it alone, so a
+     * structure changed in memory after it is checked again. */
+    atomic_int validated;
 };
+
+/* as_structure_validate, unless as_structure_validate_recorded has
+ * already vouched for the structure. For walks that must not follow a bad
+ * index (statistics, closest points). */
+as_error_t as_structure_check_valid(const as_structure_t *s);
 
 /* The section with this tag, or NULL. */
 const as_section_t *as_structure_find(const as_structure_t *s, uint32_t tag);

@@ -275,6 +275,30 @@ as_structure_t *as_structure_convert(const as_structure_t *s, as_layout_t layout
  * the node on failure. */
 as_error_t as_structure_validate(const as_structure_t *s);
 
+/* What as_structure_validate_recorded did. */
+typedef struct as_validation_info {
+    bool skipped;                /* the record listed the fingerprint: no walk */
+    double fingerprint_ms;       /* hashing the sections (0 without a record) */
+    double validate_ms;          /* the walk (0 when skipped) */
+    uint8_t fingerprint[16];     /* as as_structure_fingerprint gives it */
+} as_validation_info_t;
+
+/* The structure's content as a 128-bit XXH3 fingerprint: META and every
+ * section's tag, size and bytes (not the build record), hashed on every
+ * core in fixed pieces, so equal bytes give equal fingerprints on any
+ * machine and thread count. XXH3 finds accidental changes, not forged ones:
+ * see docs/SECURITY.md. */
+as_error_t as_structure_fingerprint(const as_structure_t *s, uint8_t fingerprint[16]);
+
+/* Validates the structure once for all later walks in this process. With a
+ * `record` (a text file of fingerprints, one per line in hex; missing means
+ * empty), a structure whose fingerprint it lists is taken as valid without
+ * the walk, and one that passes the walk is added to it (written
+ * atomically). Only for records and files from a trusted source: whoever
+ * can write either can make the walk be skipped. `record` may be NULL (then
+ * this is as_structure_validate, remembered); `info` may be NULL. */
+as_error_t as_structure_validate_recorded(const as_structure_t *s, const char *record, as_validation_info_t *info);
+
 #define AS_HISTOGRAM_BINS 65
 
 typedef struct as_structure_stats {
