@@ -38,8 +38,16 @@ double as_now_ms(void)
 unsigned as_thread_count(unsigned requested)
 {
     if (requested) return requested;
-    const long n = sysconf(_SC_NPROCESSORS_ONLN);
-    return n > 0 ? (unsigned)n : 1u;
+    /* Asked once: glibc answers by reading /sys on every call, and builders
+     * ask per node. */
+    static atomic_uint cores;
+    unsigned n = atomic_load_explicit(&cores, memory_order_relaxed);
+    if (!n) {
+        const long online = sysconf(_SC_NPROCESSORS_ONLN);
+        n = online > 0 ? (unsigned)online : 1u;
+        atomic_store_explicit(&cores, n, memory_order_relaxed);
+    }
+    return n;
 }
 
 typedef struct parallel_job {
