@@ -13,6 +13,9 @@
 #include <cuda_runtime.h>
 
 #include <algorithm>
+#include <atomic>
+#include <mutex>
+#include <thread>
 #include <new>
 #include <cstdio>
 #include <cstring>
@@ -195,7 +198,6 @@ extern "C" int as_gpu_device_count(void)
         if (_e != cudaSuccess) { err = cuda_fail(_e, what); goto done; }     \
     } while (0)
 
-extern "C" void as_parallel_for(unsigned threads, size_t count, void (*fn)(void *, size_t), void *user);
 extern "C" double as_now_ms(void);
 
 extern "C" uint64_t as_gpu_free_memory(void)
@@ -210,62 +212,95 @@ extern "C" uint64_t as_gpu_free_memory(void)
 
 namespace {
 
-// The pinned pipeline: each chunk of the mapping is copied into one of a
-// ring of pinned buffers by several threads, then uploaded asynchronously
-// while the next chunk is being copied.
-constexpr size_t kRingBuffers = 4;
-constexpr size_t kChunk = 32u << 20;
-constexpr unsigned kCopyThreads = 8;
+// The pinned pipeline: a few host threads, each with two pinned staging
+// buffers and a stream of its own, take chunks of the sections in turn,
+// copy one into a buffer while the other buffer's upload runs, and upload
+// it asynchronously. Copies from the page cache and uploads over PCIe then
+// overlap on every thread, and no thread waits for another.
+constexpr size_t kChunk = 8u << 20;
+constexpr unsigned kPipeThreads = 4;
 
-struct chunk_copy {
-    unsigned char *dst;
-    const unsigned char *src;
+struct pipe_chunk {
+    int section;
+    uint64_t offset;
     size_t bytes;
 };
 
-void copy_piece(void *user, size_t piece)
+struct pipe_job {
+    void *const *device;
+    const void *const *host;
+    std::vector<pipe_chunk> chunks;
+    std::atomic<size_t> next{0};
+    std::atomic<int> failed{0};
+    cudaError_t error = cudaSuccess;
+    const char *what = nullptr;
+    std::mutex lock;
+};
+
+void pipe_fail(pipe_job *job, cudaError_t e, const char *what)
 {
-    const chunk_copy *c = static_cast<const chunk_copy *>(user);
-    const size_t per = (c->bytes + kCopyThreads - 1) / kCopyThreads;
-    const size_t begin = piece * per;
-    if (begin >= c->bytes) return;
-    const size_t n = std::min(per, c->bytes - begin);
-    memcpy(c->dst + begin, c->src + begin, n);
+    std::lock_guard<std::mutex> g(job->lock);
+    if (!job->failed.exchange(1)) {
+        job->error = e;
+        job->what = what;
+    }
+}
+
+void pipe_worker(pipe_job *job)
+{
+    void *buf[2] = {nullptr, nullptr};
+    cudaEvent_t ev[2] = {nullptr, nullptr};
+    cudaStream_t stream = nullptr;
+    cudaError_t e = cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking);
+    for (int b = 0; b < 2 && e == cudaSuccess; ++b) {
+        e = cudaHostAlloc(&buf[b], kChunk, cudaHostAllocDefault);
+        if (e == cudaSuccess) e = cudaEventCreateWithFlags(&ev[b], cudaEventDisableTiming);
+    }
+    if (e != cudaSuccess) pipe_fail(job, e, "pinned pipeline set-up");
+    for (size_t k = 0; e == cudaSuccess && !job->failed.load();) {
+        const size_t i = job->next.fetch_add(1);
+        if (i >= job->chunks.size()) break;
+        const pipe_chunk &c = job->chunks[i];
+        const int b = (int)(k & 1);
+        // The buffer is free again once its previous upload finished.
+        if (k >= 2 && (e = cudaEventSynchronize(ev[b])) != cudaSuccess) break;
+        memcpy(buf[b], static_cast<const unsigned char *>(job->host[c.section]) + c.offset, c.bytes);
+        e = cudaMemcpyAsync(static_cast<unsigned char *>(job->device[c.section]) + c.offset, buf[b], c.bytes,
+                            cudaMemcpyHostToDevice, stream);
+        if (e == cudaSuccess) e = cudaEventRecord(ev[b], stream);
+        ++k;
+    }
+    if (stream) {
+        const cudaError_t s2 = cudaStreamSynchronize(stream);
+        if (e == cudaSuccess) e = s2;
+    }
+    if (e != cudaSuccess) pipe_fail(job, e, "pipelined upload");
+    for (int b = 0; b < 2; ++b) {
+        if (buf[b]) cudaFreeHost(buf[b]);
+        if (ev[b]) cudaEventDestroy(ev[b]);
+    }
+    if (stream) cudaStreamDestroy(stream);
 }
 
 as_error_t upload_pinned_pipeline(void *const *device, const void *const *host, const uint64_t *bytes, int count)
 {
-    as_error_t err = AS_OK;
-    void *ring[kRingBuffers] = {};
-    cudaEvent_t done_ev[kRingBuffers] = {};
-    cudaStream_t stream = nullptr;
-    size_t k = 0;
-    CUDA_TRY(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking), "cudaStreamCreate");
-    for (size_t b = 0; b < kRingBuffers; ++b) {
-        CUDA_TRY(cudaHostAlloc(&ring[b], kChunk, cudaHostAllocDefault), "cudaHostAlloc");
-        CUDA_TRY(cudaEventCreateWithFlags(&done_ev[b], cudaEventDisableTiming), "cudaEventCreate");
+    pipe_job job;
+    job.device = device;
+    job.host = host;
+    for (int sct = 0; sct < count; ++sct)
+        for (uint64_t off = 0; off < bytes[sct]; off += kChunk)
+            job.chunks.push_back({sct, off, (size_t)std::min<uint64_t>(kChunk, bytes[sct] - off)});
+    const unsigned threads = (unsigned)std::min<size_t>(kPipeThreads, std::max<size_t>(job.chunks.size(), 1));
+    std::vector<std::thread> pool;
+    try {
+        for (unsigned t = 1; t < threads; ++t) pool.emplace_back(pipe_worker, &job);
+    } catch (...) {
+        // Fewer threads than asked: the ones started and this one do it all.
     }
-    for (int sct = 0; sct < count; ++sct) {
-        for (uint64_t off = 0; off < bytes[sct]; off += kChunk, ++k) {
-            const size_t b = k % kRingBuffers;
-            const size_t n = (size_t)std::min<uint64_t>(kChunk, bytes[sct] - off);
-            // The buffer is free again once its last upload finished.
-            if (k >= kRingBuffers) CUDA_TRY(cudaEventSynchronize(done_ev[b]), "pipeline wait");
-            chunk_copy c = {static_cast<unsigned char *>(ring[b]), static_cast<const unsigned char *>(host[sct]) + off, n};
-            as_parallel_for(kCopyThreads, kCopyThreads, copy_piece, &c);
-            CUDA_TRY(cudaMemcpyAsync(static_cast<unsigned char *>(device[sct]) + off, ring[b], n,
-                                     cudaMemcpyHostToDevice, stream), "pipelined upload");
-            CUDA_TRY(cudaEventRecord(done_ev[b], stream), "cudaEventRecord");
-        }
-    }
-    CUDA_TRY(cudaStreamSynchronize(stream), "pipelined upload");
-done:
-    for (size_t b = 0; b < kRingBuffers; ++b) {
-        if (ring[b]) cudaFreeHost(ring[b]);
-        if (done_ev[b]) cudaEventDestroy(done_ev[b]);
-    }
-    if (stream) cudaStreamDestroy(stream);
-    return err;
+    pipe_worker(&job);
+    for (std::thread &t : pool) t.join();
+    if (job.failed.load()) return cuda_fail(job.error, job.what);
+    return AS_OK;
 }
 
 } // namespace

@@ -44,10 +44,12 @@ static as_error_t upload(const as_structure_t *s, const as_trace_args_t *args)
     if (zero_copy && !in_file)
         return as_set_error(AS_ERROR_UNSUPPORTED, "zero-copy residency needs a structure loaded from a file with uncompressed sections");
     int method = args->upload;
-    /* Measured on the H100 with San Miguel (654 MB, page cache): cudaMemcpy
-     * from the mapping 9.7 GB/s, the pinned pipeline 5.2 GB/s
-     * (docs/results/2026-11-22-upload-h100.md). */
-    if (method == AS_UPLOAD_AUTO) method = AS_UPLOAD_PAGEABLE;
+    /* Measured on the H100 with San Miguel's SBVH (693 MB, page cache), in
+     * one run: the pinned pipeline 9.8 to 13.9 GB/s, cudaMemcpy from the
+     * mapping 7.3 to 8.3 GB/s; the same pipeline with 8 threads 5.1 to 7.0
+     * (pinning its buffers costs more than it gains); docs/results/
+     * 2026-11-22-load-validation-heat-h100.md. */
+    if (method == AS_UPLOAD_AUTO) method = AS_UPLOAD_PINNED_PIPELINE;
     if (method == AS_UPLOAD_REGISTERED && !in_file) method = AS_UPLOAD_PAGEABLE;
     struct as_gpu_resident *g = NULL;
     const as_error_t err = as_gpu_upload(data, bytes, (int)ops->section_count, zero_copy, method,

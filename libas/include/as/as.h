@@ -399,10 +399,11 @@ typedef enum as_residency {
 } as_residency_t;
 
 typedef enum as_upload_method {
-    AS_UPLOAD_AUTO = 0,          /* the fastest measured: pageable on the H100 */
+    AS_UPLOAD_AUTO = 0,          /* the fastest measured: the pinned pipeline on the H100 */
     AS_UPLOAD_PAGEABLE = 1,      /* cudaMemcpy straight from the mapping */
-    AS_UPLOAD_PINNED_PIPELINE = 2, /* threads copy the mapping into a ring of pinned
-                                    buffers, uploaded asynchronously */
+    AS_UPLOAD_PINNED_PIPELINE = 2, /* four threads copy the sections into pinned
+                                    buffers (two each), uploaded asynchronously
+                                    on a stream per thread */
     AS_UPLOAD_REGISTERED = 3     /* cudaHostRegister the mapping, then copy */
 } as_upload_method_t;
 
