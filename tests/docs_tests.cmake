@@ -15,6 +15,20 @@ endforeach()
 # The guide works on a scene of ../shared/scenes.
 set_tests_properties(docs_guide_commands_print_what_it_shows PROPERTIES LABELS "docs;scenes")
 
+# docs/embedding.md installs this build tree into a scratch prefix and builds
+# tests/consumer against it through CMake and pkg-config, then runs the CPU
+# examples of build/examples (--build links the tree as `build`). A
+# sanitized libas cannot serve a consumer built as a user builds it
+# (tests/packaging.cmake), and the examples must be there.
+if(NOT AS_SANITIZE AND TARGET build_and_save)
+  add_test(NAME docs_embedding_commands_print_what_it_shows
+    COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/docs/run_doc_commands.py --build ${PROJECT_BINARY_DIR}
+            ${PROJECT_SOURCE_DIR}/docs/embedding.md $<TARGET_FILE_DIR:as-build> ${PROJECT_SOURCE_DIR}
+            ${AS_SCENES_DIR})
+  set_tests_properties(docs_embedding_commands_print_what_it_shows PROPERTIES
+    SKIP_RETURN_CODE 77 LABELS docs)
+endif()
+
 # The API reference is generated from as.h (scripts/gen_api_doc.py): this
 # fails when docs/api.md is not what the header gives, and when a function
 # of the header has no comment at its declaration.

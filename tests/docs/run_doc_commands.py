@@ -2,7 +2,7 @@
 """Runs the commands a Markdown page shows and compares their output with the
 output the page shows.
 
-    run_doc_commands.py PAGE.md TOOL_DIR SOURCE_DIR [SCENES_DIR]
+    run_doc_commands.py [--build BUILD_DIR] PAGE.md TOOL_DIR SOURCE_DIR [SCENES_DIR]
 
 What the page shows, and what runs:
 
@@ -20,8 +20,12 @@ The commands of a page run in order in one bash shell, so that `cd`,
 variables and `echo $?` carry over from one to the next. The shell starts in
 a scratch directory that stands for the repository root: it holds `scenes`
 (a link to the bundled scenes), and `../shared` beside it is a link to the
-folder holding the shared scenes, when there is one. The tools' directory
-comes first on PATH; LC_ALL=C and TZ=UTC.
+folder holding the shared scenes, when there is one. With --build, it holds
+`build` too, a link to the build tree BUILD_DIR, and `examples` and `tests`,
+links to the source's, so that a page can install that tree and build the
+programs of the source against the install (docs/embedding.md). HOME is an
+empty scratch directory. The tools' directory comes first on PATH; LC_ALL=C
+and TZ=UTC.
 
 A command must exit 0, unless the next command is `echo $?`, which shows
 its status.
@@ -38,7 +42,8 @@ differ from run to run are masked on both sides before they are compared:
   "cores";
 - dates and times of day ("2026-11-22", "Nov 22", "07:02", "07:02:33");
 - the six random characters of a temporary file's name (NAME.tmp.XXXXXX);
-- the scratch directory's absolute path, which reads as $PWD.
+- the scratch directory's absolute path, which reads as $PWD, and the
+  scratch HOME's, which reads as $HOME.
 
 Prints one line per command, "ok - ..." or "FAIL - ..." with the
 differences; exits 0 when every command matched, 1 when one did not, 77
@@ -102,8 +107,8 @@ def parse_page(text):
     return steps
 
 
-def mask(line, scratch):
-    line = line.replace(scratch, "$PWD")
+def mask(line, scratch, home):
+    line = line.replace(scratch, "$PWD").replace(home, "$HOME")
     for pattern, repl in MASKS:
         line = pattern.sub(repl, line)
     return line.rstrip()
@@ -143,11 +148,15 @@ def shell_quote(s):
 
 
 def main():
-    if len(sys.argv) not in (4, 5):
-        sys.stderr.write("usage: run_doc_commands.py PAGE.md TOOL_DIR SOURCE_DIR [SCENES_DIR]\n")
+    args = sys.argv[1:]
+    build = None
+    if len(args) >= 2 and args[0] == "--build":
+        build, args = os.path.abspath(args[1]), args[2:]
+    if len(args) not in (3, 4):
+        sys.stderr.write("usage: run_doc_commands.py [--build BUILD_DIR] PAGE.md TOOL_DIR SOURCE_DIR [SCENES_DIR]\n")
         return 2
-    page, tool_dir, src = (os.path.abspath(a) for a in sys.argv[1:4])
-    scenes = os.path.abspath(sys.argv[4]) if len(sys.argv) == 5 else None
+    page, tool_dir, src = (os.path.abspath(a) for a in args[:3])
+    scenes = os.path.abspath(args[3]) if len(args) == 4 else None
     name = os.path.relpath(page, src)
     steps = parse_page(open(page, encoding="utf-8").read())
     commands = [s for s in steps if s[0] == "command"]
@@ -166,6 +175,12 @@ def main():
         root = os.path.join(base, "libas")
         os.mkdir(root)
         os.symlink(os.path.join(src, "scenes"), os.path.join(root, "scenes"))
+        if build:
+            os.symlink(build, os.path.join(root, "build"))
+            for d in ("examples", "tests"):
+                os.symlink(os.path.join(src, d), os.path.join(root, d))
+        home = os.path.join(base, "home")
+        os.mkdir(home)
         if scenes and os.path.isdir(scenes):
             os.symlink(os.path.dirname(scenes), os.path.join(base, "shared"))
         script = ["exec 2>&1", "cd %s || exit 99" % shell_quote(root), "__doc_rc=0"]
@@ -178,7 +193,7 @@ def main():
                 script.append(step[1])
                 script.append("__doc_rc=$?; printf '\\n%s%%d\\n' $__doc_rc" % MARKER)
         env = dict(os.environ, PATH=os.path.abspath(tool_dir) + os.pathsep + os.environ.get("PATH", ""),
-                   LC_ALL="C", TZ="UTC")
+                   LC_ALL="C", TZ="UTC", HOME=home)
         env.pop("CDPATH", None)
         script_path = os.path.join(base, "page.sh")
         with open(script_path, "w") as f:
@@ -196,8 +211,8 @@ def main():
                 continue
             out, rc = outputs[k]
             shows_status = k + 1 < len(commands) and commands[k + 1][1].strip() == "echo $?"
-            exp = trim(mask(l, root) for l in expected)
-            act = trim(mask(l, root) for l in out.splitlines())
+            exp = trim(mask(l, root, home) for l in expected)
+            act = trim(mask(l, root, home) for l in out.splitlines())
             problems = []
             if rc != 0 and not shows_status:
                 problems.append("exit status %d (a command must exit 0 unless the next one is `echo $?`)" % rc)
