@@ -211,18 +211,40 @@ typedef struct as_memory_estimate {
     uint64_t structure_bytes_max;      /* upper bound of the built structure's bytes (META
                                           and every section, raw): what
                                           as_structure_stats_t.structure_bytes will say */
-    uint64_t structure_bytes_typical;  /* what such meshes usually give; an estimate */
+    uint64_t structure_bytes_typical;  /* what such meshes usually give; an estimate
+                                          (for KD, BIH, octree and grid, per-kind
+                                          factors measured on the bunny and random
+                                          soups), not a bound */
     uint64_t build_peak_bytes;         /* the builder's working memory at its peak, the
                                           result included, the mesh not: an estimate
                                           from the builder's allocations, not a bound */
 } as_memory_estimate_t;
 
 /* The memory a build of `mesh` with `args` (NULL: defaults) will need, from
- * the mesh's counts and the arguments alone, without building. Bounds are
- * derived for the BVH family (every builder, both layouts): for an SBVH
- * they follow split_budget. Fails with AS_ERROR_UNSUPPORTED for the other
- * structure kinds, INVALID_ARGUMENT for a NULL argument or a split budget
- * the builder would refuse. */
+ * the mesh's counts and the arguments alone (for the grid also the scene
+ * box), without building, for every kind, builder and layout. How close
+ * structure_bytes_max is, from the builders' rules (N: non-degenerate
+ * triangles; the TRIS section, 48 bytes per triangle, is exact everywhere):
+ *  - BVH: every builder but the SBVH holds N references, at most N - 1
+ *    inner nodes (the bunny: 1.4x to 1.7x); the SBVH up to split_budget x N
+ *    (5.4x on the bunny at the default budget of 4).
+ *  - Grid: the cells are the builder's resolution formula (the build only
+ *    lowers it), PRIM at most split_budget x N: 1.07x on the bunny, up to
+ *    1.3x on soups, the slack being the budget's unused references.
+ *  - BIH: each triangle once, at most N - 1 inner nodes: about 1.3x.
+ *  - KD (both builders, both layouts) and octree: references at most
+ *    split_budget x N (each subtree keeps to its share), but inner nodes are
+ *    bounded only level by level up to the depth cap (the KD cap 8 + 1.3
+ *    log2 N unless max_depth says, the octree's 12): each level holds at most
+ *    split_budget x N / (fewest references a node splits with) of them, the
+ *    SAH KD tree splitting down to one reference and a split may leave one
+ *    side empty, so empty leaves are limited only by that cap. On the bunny
+ *    3.5x (mid-cut) and 7.6x (SAH), 6.5x and 18x with ropes (48 bytes per
+ *    leaf), 5.3x for the octree; up to 24x on flat scenes.
+ * build_peak_bytes is an estimate from the builders' allocations. Fails with
+ * INVALID_ARGUMENT for a NULL argument or arguments the builder would
+ * refuse (split budget, leaf size, grid lambda), UNSUPPORTED for a builder
+ * or layout of another kind. */
 as_error_t as_structure_estimate(const as_mesh_t *mesh, const as_build_args_t *args, as_memory_estimate_t *out);
 
 typedef struct as_save_args {
