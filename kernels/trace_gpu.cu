@@ -192,6 +192,16 @@ extern "C" int as_gpu_device_count(void)
     return n;
 }
 
+extern "C" int as_gpu_create_context(void)
+{
+    // cudaFree(0) is the documented way to make the runtime create it.
+    if (cudaFree(0) != cudaSuccess) {
+        cudaGetLastError();
+        return 0;
+    }
+    return 1;
+}
+
 #define CUDA_TRY(call, what)                                                 \
     do {                                                                     \
         const cudaError_t _e = (call);                                       \

@@ -10,6 +10,8 @@ extern "C" {
 
 /* Number of usable CUDA devices (0 when the driver or device is missing). */
 int as_gpu_device_count(void);
+/* Creates the CUDA context of the current device; 0 when it cannot. */
+int as_gpu_create_context(void);
 
 /* How to launch: filled from as_trace_args_t. */
 typedef struct as_gpu_launch {

@@ -399,13 +399,10 @@ as_error_t as_structure_check_valid(const as_structure_t *s)
     return as_structure_validate(s);
 }
 
-as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *st)
+/* What META and the build record say; no walk. */
+static void stats_from_header(const as_structure_t *s, as_structure_stats_t *st)
 {
-    if (!s || !st) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_get_stats: NULL argument");
     memset(st, 0, sizeof *st);
-    /* The walk below follows child indices: only a valid tree may be walked. */
-    const as_error_t err = as_structure_check_valid(s);
-    if (err != AS_OK) return err;
     st->structure = (as_structure_kind_t)s->meta.structure_kind;
     st->layout = (as_layout_t)s->meta.layout;
     st->layout_version = s->meta.layout_version;
@@ -429,6 +426,23 @@ as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t 
     for (uint32_t i = 0; i < s->section_count; ++i) st->structure_bytes += s->sections[i].bytes;
     st->empty_leaf_count = s->meta.empty_leaf_count;
     st->reference_count = s->meta.reference_count;
+}
+
+as_error_t as_structure_get_header_stats(const as_structure_t *s, as_structure_stats_t *st)
+{
+    if (!s || !st) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_get_header_stats: NULL argument");
+    stats_from_header(s, st);
+    return AS_OK;
+}
+
+as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *st)
+{
+    if (!s || !st) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_structure_get_stats: NULL argument");
+    memset(st, 0, sizeof *st);
+    /* The walk below follows child indices: only a valid tree may be walked. */
+    const as_error_t err = as_structure_check_valid(s);
+    if (err != AS_OK) return err;
+    stats_from_header(s, st);
     as_structure_ops(s)->stats(s, st);
     st->average_leaf_size = st->leaf_count ? (double)st->reference_count / (double)st->leaf_count : 0.0;
     return AS_OK;

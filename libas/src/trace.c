@@ -86,6 +86,14 @@ as_error_t as_structure_upload(const as_structure_t *s, const as_trace_args_t *u
 #endif
 }
 
+as_error_t as_gpu_prepare(void)
+{
+#ifdef AS_HAVE_CUDA
+    if (as_gpu_device_count() > 0 && as_gpu_create_context()) return AS_OK;
+#endif
+    return as_set_error(AS_ERROR_NO_DEVICE, "no usable CUDA device");
+}
+
 bool as_gpu_available(void)
 {
 #ifdef AS_HAVE_CUDA

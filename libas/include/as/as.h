@@ -358,6 +358,13 @@ typedef struct as_structure_stats {
  * AS_ERROR_INVALID_STRUCTURE and no figures. */
 as_error_t as_structure_get_stats(const as_structure_t *s, as_structure_stats_t *stats);
 
+/* Only what META and the build record say: kind, layout, builder and its
+ * parameters, triangle count, bounds, source hash, bytes, the build record
+ * and META's counts. No walk, so no validation and no time in proportion to
+ * the tree; the walked figures (depths, histograms, SAH cost, leaf counts)
+ * stay zero. What a tracer needs before its first launch. */
+as_error_t as_structure_get_header_stats(const as_structure_t *s, as_structure_stats_t *stats);
+
 /* Sections of the structure (for inspection). */
 typedef struct as_section_info {
     char tag[5];                 /* four characters and a NUL */
@@ -529,6 +536,12 @@ as_error_t as_verify(const as_structure_t *s, const as_ray_t *rays, const as_hit
 
 /* True when this build has CUDA and a device is usable. */
 bool as_gpu_available(void);
+
+/* Creates the CUDA context now. The first CUDA call of a process pays for
+ * it (100 to 300 ms on the H100 host), wherever it falls; a caller that
+ * times a load calls this first so the load is timed without it.
+ * AS_ERROR_NO_DEVICE without a usable device. */
+as_error_t as_gpu_prepare(void);
 
 /* Ray and hit files (formats/SPEC.md). The read functions allocate *out with
  * malloc; the caller frees it. Writers write to a temporary file and rename. */
