@@ -385,9 +385,19 @@ bool ply_sane(const char *data, size_t size)
     std::vector<Element> elements;
     std::vector<std::string> words;
     LineWords lines(data, size);
-    bool ascii = false;
+    bool ascii = false, format_seen = false;
     if (!lines.next(words) || words.size() != 1 || (words[0] != "ply" && words[0] != "PLY"))
         return false;
+    /* The scalar types OpenMesh's PLY reader knows; it reads an unknown one
+     * as something else and runs off with the counts. */
+    static const char *const types[] = {"char",  "uchar",  "short",  "ushort",  "int",     "uint",
+                                        "float", "double", "int8",   "uint8",   "int16",   "uint16",
+                                        "int32", "uint32", "float32", "float64"};
+    auto known_type = [](const std::string &t) {
+        for (const char *k : types)
+            if (t == k) return true;
+        return false;
+    };
     long scalars = 0;
     for (;;) {
         if (!lines.next(words) || words.empty()) return false;
@@ -398,8 +408,13 @@ bool ply_sane(const char *data, size_t size)
         }
         if (w == "comment" || w == "obj_info") continue;
         if (w == "format") {
+            /* One format line, of a known kind: with two, OpenMesh and this
+             * check could read the body differently. */
             char *after;
-            if (words.size() != 3) return false;
+            if (format_seen || words.size() != 3) return false;
+            if (words[1] != "ascii" && words[1] != "binary_little_endian" && words[1] != "binary_big_endian")
+                return false;
+            format_seen = true;
             std::strtod(words[2].c_str(), &after);
             if (*after != '\0' || after == words[2].c_str()) return false;
             ascii = words[1] == "ascii";
@@ -413,6 +428,7 @@ bool ply_sane(const char *data, size_t size)
             Element &e = elements.back();
             const bool list = words.size() > 1 && words[1] == "list";
             if (words.size() != (list ? 5u : 3u)) return false;
+            if (list ? !known_type(words[2]) || !known_type(words[3]) : !known_type(words[1])) return false;
             const std::string &prop = words.back();
             if (list && (prop == "vertex_indices" || prop == "vertex_index") && !e.list_seen)
                 e.count_at = scalars;
@@ -422,6 +438,7 @@ bool ply_sane(const char *data, size_t size)
             return false;
         }
     }
+    if (!format_seen) return false;
     if (!ascii) return true;
     /* One element per line, as OpenMesh reads them; it stops after faces. */
     for (const Element &e : elements) {
@@ -444,9 +461,16 @@ bool off_faces_sane(const char *data, size_t size)
 {
     std::vector<std::string> words;
     LineWords lines(data, size);
-    if (!lines.next(words)) return false;
-    for (const std::string &w : words)
-        if (w.find("BINARY") != std::string::npos) return true;
+    if (!lines.next(words) || words.empty() || words.size() > 2) return false;
+    /* The header line is the keyword (letters and digits ending in OFF:
+     * OFF, NOFF, COFF, STOFF, 4OFF, ...) and at most the word BINARY; on
+     * anything else OpenMesh may guess ASCII or binary either way, so the
+     * checks below could not speak for the reader. */
+    const std::string &magic = words[0];
+    if (magic.size() < 3 || magic.compare(magic.size() - 3, 3, "OFF") != 0) return false;
+    for (char ch : magic)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) return false;
+    if (words.size() == 2) return words[1] == "BINARY"; /* the reader checks the binary body */
     unsigned long long nv, nf;
     if (!lines.next_nonblank(words) || words.size() < 2 || !parse_count(words[0], nv) ||
         !parse_count(words[1], nf))
