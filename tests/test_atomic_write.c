@@ -8,6 +8,7 @@
 #include "atomic_file.h"
 #include "as_internal.h"
 #include "test_util.h"
+#include "test_scratch.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -15,33 +16,6 @@
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
-
-static char tmp_dir[64];
-
-static const char *tmp_path(const char *file)
-{
-    static char buf[4][512];
-    static int next;
-    char *p = buf[next++ % 4];
-    snprintf(p, sizeof buf[0], "%s/%s", tmp_dir, file);
-    return p;
-}
-
-/* Names in the test directory holding ".tmp.": a writer's leftovers. */
-static int temp_leftovers(void)
-{
-    DIR *d = opendir(tmp_dir);
-    if (!d) return -1;
-    int n = 0;
-    for (struct dirent *e; (e = readdir(d));) {
-        if (strstr(e->d_name, ".tmp.")) {
-            fprintf(stderr, "  left behind: %s\n", e->d_name);
-            ++n;
-        }
-    }
-    closedir(d);
-    return n;
-}
 
 /* A flat strip of 2 * quads triangles: a structure whose file grows with
  * `quads` (48 bytes of TRI4 per triangle, plus nodes). */
@@ -215,11 +189,7 @@ static void failed_write_of_a_ray_file_leaves_previous_file(void)
 
 int main(void)
 {
-    snprintf(tmp_dir, sizeof tmp_dir, "/tmp/as_atomic_write.XXXXXX");
-    if (!mkdtemp(tmp_dir)) {
-        perror("mkdtemp");
-        return 1;
-    }
+    if (!tmp_dir_make("as_atomic_write")) return 1;
     RUN_TEST(save_over_existing_file_replaces_it_whole);
     RUN_TEST(full_disk_leaves_previous_file_and_no_temporary);
     RUN_TEST(failed_create_write_sync_or_rename_leaves_previous_file);

@@ -5,6 +5,7 @@
 #include "asf_container.h"
 #include "as_internal.h"
 #include "test_util.h"
+#include "test_scratch.h"
 
 #include <dirent.h>
 #include <stdint.h>
@@ -14,17 +15,6 @@
     if (!_s || strncmp(_s, _p, strlen(_p)) != 0) { \
         fprintf(stderr, "%s:%d: \"%s\" does not start with \"%s\"\n", __FILE__, __LINE__, \
                 _s ? _s : "(null)", _p); ++test_failures; } } while (0)
-
-static char tmp_dir[64];
-
-static const char *tmp_path(const char *file)
-{
-    static char buf[4][512];
-    static int next;
-    char *p = buf[next++ % 4];
-    snprintf(p, sizeof buf[0], "%s/%s", tmp_dir, file);
-    return p;
-}
 
 static void write_bytes(const char *path, const void *data, size_t size)
 {
@@ -51,17 +41,6 @@ static uint8_t *read_bytes(const char *path, size_t *size)
     fclose(f);
     *size = (size_t)n;
     return p;
-}
-
-/* Files in the temp dir whose name contains ".tmp.": a writer's leftovers. */
-static int temp_leftovers(void)
-{
-    DIR *d = opendir(tmp_dir);
-    int n = 0;
-    for (struct dirent *e; d && (e = readdir(d));)
-        if (strstr(e->d_name, ".tmp.")) ++n;
-    if (d) closedir(d);
-    return n;
 }
 
 /* A sample structure: META (raw), BVH2 (compressible nodes), TRI4
@@ -731,22 +710,9 @@ static void reader_reports_missing_file(void)
     CHECK_STR_STARTS(as_get_error_message(), path);
 }
 
-static void remove_tmp_dir(void)
-{
-    DIR *d = opendir(tmp_dir);
-    for (struct dirent *e; d && (e = readdir(d));)
-        if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) remove(tmp_path(e->d_name));
-    if (d) closedir(d);
-    rmdir(tmp_dir);
-}
-
 int main(void)
 {
-    strcpy(tmp_dir, "/tmp/as_test_container_XXXXXX");
-    if (!mkdtemp(tmp_dir)) {
-        perror("mkdtemp");
-        return 1;
-    }
+    if (!tmp_dir_make("as_test_container")) return 1;
     RUN_TEST(writer_lays_out_header_table_and_aligned_sections);
     RUN_TEST(round_trip_in_memory_uncompressed);
     RUN_TEST(round_trip_in_memory_compressed);

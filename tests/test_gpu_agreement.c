@@ -91,6 +91,17 @@ static void zero_copy_residency_gives_the_same_hits(const char *path, size_t n)
     unlink(file);
 }
 
+/* Builds the variant named {structure, builder, layout}. */
+static as_structure_t *build_variant(const as_mesh_t *m, const char *const names[3])
+{
+    as_build_args_t args;
+    as_build_args_default(&args);
+    args.structure = as_structure_kind_from_name(names[0]);
+    args.builder = as_builder_from_name(args.structure, names[1]);
+    args.layout = as_layout_from_name(names[2]);
+    return as_structure_build(m, &args);
+}
+
 /* Every variant this build has, by its names. */
 static const char *const variants[][3] = {
     {"bvh", "sah", "bvh2-child-bounds"},  {"bvh", "midcut", "bvh2-child-bounds"},
@@ -110,12 +121,7 @@ static void gpu_hits_equal_cpu_hits(const char *path, size_t n)
     as_ray_t *rays = malloc(sizeof *rays * n);
     ref_make_scene_rays(m, n, 31337, rays);
     for (size_t v = 0; v < sizeof variants / sizeof variants[0]; ++v) {
-        as_build_args_t args;
-        as_build_args_default(&args);
-        args.structure = as_structure_kind_from_name(variants[v][0]);
-        args.builder = as_builder_from_name(args.structure, variants[v][1]);
-        args.layout = as_layout_from_name(variants[v][2]);
-        as_structure_t *s = as_structure_build(m, &args);
+        as_structure_t *s = build_variant(m, variants[v]);
         char what[512];
         snprintf(what, sizeof what, "%s %s/%s/%s", path, variants[v][0], variants[v][1], variants[v][2]);
         if (!s && as_get_error() == AS_ERROR_UNSUPPORTED) {
@@ -148,12 +154,7 @@ static void gpu_hits_equal_cpu_hits_per_workload(const char *path)
         {"grid", "grid", "grid"},
     };
     for (size_t v = 0; v < sizeof kinds / sizeof kinds[0]; ++v) {
-        as_build_args_t args;
-        as_build_args_default(&args);
-        args.structure = as_structure_kind_from_name(kinds[v][0]);
-        args.builder = as_builder_from_name(args.structure, kinds[v][1]);
-        args.layout = as_layout_from_name(kinds[v][2]);
-        as_structure_t *s = as_structure_build(m, &args);
+        as_structure_t *s = build_variant(m, kinds[v]);
         CHECK(s != NULL);
         if (!s) continue;
         char what[600];

@@ -4,6 +4,7 @@
 #include "as/as.h"
 #include "asf_format.h"
 #include "test_util.h"
+#include "test_scratch.h"
 
 #include <dirent.h>
 #include <math.h>
@@ -13,17 +14,6 @@
     if (!_s || strncmp(_s, _p, strlen(_p)) != 0) { \
         fprintf(stderr, "%s:%d: \"%s\" does not start with \"%s\"\n", __FILE__, __LINE__, \
                 _s ? _s : "(null)", _p); ++test_failures; } } while (0)
-
-static char tmp_dir[64];
-
-static const char *tmp_path(const char *file)
-{
-    static char buf[4][512];
-    static int next;
-    char *p = buf[next++ % 4];
-    snprintf(p, sizeof buf[0], "%s/%s", tmp_dir, file);
-    return p;
-}
 
 static void write_bytes(const char *path, const void *data, size_t size)
 {
@@ -50,16 +40,6 @@ static uint8_t *read_bytes(const char *path, size_t *size)
     fclose(f);
     *size = (size_t)n;
     return p;
-}
-
-static int temp_leftovers(void)
-{
-    DIR *d = opendir(tmp_dir);
-    int n = 0;
-    for (struct dirent *e; d && (e = readdir(d));)
-        if (strstr(e->d_name, ".tmp.")) ++n;
-    if (d) closedir(d);
-    return n;
 }
 
 enum { RAYS = 5 };
@@ -318,22 +298,9 @@ static void writers_report_io_error_naming_the_path(void)
     CHECK_EQ_INT(temp_leftovers(), 0);
 }
 
-static void remove_tmp_dir(void)
-{
-    DIR *d = opendir(tmp_dir);
-    for (struct dirent *e; d && (e = readdir(d));)
-        if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) remove(tmp_path(e->d_name));
-    if (d) closedir(d);
-    rmdir(tmp_dir);
-}
-
 int main(void)
 {
-    strcpy(tmp_dir, "/tmp/as_test_records_XXXXXX");
-    if (!mkdtemp(tmp_dir)) {
-        perror("mkdtemp");
-        return 1;
-    }
+    if (!tmp_dir_make("as_test_records")) return 1;
     RUN_TEST(rays_round_trip_bit_exact);
     RUN_TEST(hits_round_trip_bit_exact);
     RUN_TEST(empty_ray_file_round_trips);
