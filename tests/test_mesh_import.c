@@ -245,19 +245,43 @@ static void import_refuses_file_without_triangles(void)
 
 static void import_refuses_garbage_ply_header(void)
 {
-    check_refused("garbage.ply", AS_ERROR_PARSE, "cannot parse as PLY");
+    check_refused("garbage.ply", AS_ERROR_PARSE, "line 3: unknown header keyword");
 }
 
 /* OpenMesh's readers would loop for hours or forever on these. */
 static void import_refuses_unreadable_header_count_and_glued_corners(void)
 {
-    check_refused("bad_element_count.ply", AS_ERROR_PARSE, "cannot parse as PLY");
+    check_refused("bad_element_count.ply", AS_ERROR_PARSE, "line 7: 'element' takes a name and a count");
     check_refused("glued_corners.off", AS_ERROR_PARSE, "cannot parse as OFF");
+    /* A number left over on a face line would be the next face's count. */
+    check_refused("off_face_number_left_over.off", AS_ERROR_PARSE, "cannot parse as OFF");
+}
+
+/* A PLY body is read number by number, across lines, as the format says:
+ * one number too many on a vertex line makes the next number a face's
+ * corner count. OpenMesh's reader would push 200 million corners past the
+ * end of the data; the check names the number and what it was read as. */
+static void import_refuses_ply_whose_numbers_do_not_add_up(void)
+{
+    check_refused("ply_vertex_line_too_long.ply", AS_ERROR_PARSE,
+                  "line 12: '200000000' is not a uchar list count (face 0, vertex_indices)");
+    check_refused("ply_nan_coordinate.ply", AS_ERROR_PARSE, "line 11: 'nan' is not a float (vertex 1, y)");
+    check_refused("ply_more_faces_than_counted.ply", AS_ERROR_PARSE, "line 14: data after the last face");
+}
+
+/* OpenMesh reads any list but a face's corners as one number and misreads
+ * everything after it, so such files are refused rather than half read. */
+static void import_refuses_ply_lists_it_cannot_read(void)
+{
+    check_refused("ply_face_texcoord_list.ply", AS_ERROR_PARSE,
+                  "line 9: a second list property in an element");
+    check_refused("ply_binary_material_list.ply", AS_ERROR_PARSE,
+                  "line 4: a list property other than a face's vertex_indices");
 }
 
 static void import_refuses_truncated_binary_ply(void)
 {
-    check_refused("truncated_binary.ply", AS_ERROR_PARSE, "cannot parse as PLY");
+    check_refused("truncated_binary.ply", AS_ERROR_PARSE, "the data ends in face 3 of 3");
 }
 
 static void import_refuses_damaged_zstd_frame(void)
@@ -582,6 +606,8 @@ int main(int argc, char **argv)
     RUN_TEST(import_refuses_garbage_ply_header);
     RUN_TEST(import_refuses_unreadable_header_count_and_glued_corners);
     RUN_TEST(import_refuses_truncated_binary_ply);
+    RUN_TEST(import_refuses_ply_whose_numbers_do_not_add_up);
+    RUN_TEST(import_refuses_ply_lists_it_cannot_read);
     RUN_TEST(import_refuses_damaged_zstd_frame);
     RUN_TEST(import_refuses_truncated_zstd_frame);
     RUN_TEST(obj_quads_become_consecutive_fan_triangles);

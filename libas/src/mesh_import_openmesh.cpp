@@ -355,100 +355,18 @@ bool parse_count(const std::string &w, unsigned long long &n)
     return *after == '\0';
 }
 
-/* A face line of a text OFF or PLY file must hold the corners its count
- * announces, each a plain number. OpenMesh's readers trust the count ("-3"
- * reads as 4294967293, and "2-3" as 2 then -3) and would push that many
- * corners past a failed stream. */
-bool face_line_sane(const std::vector<std::string> &words, size_t count_at)
+/* A face line of a text OFF file must hold exactly the corners its count
+ * announces, each a plain number. OpenMesh's reader reads faces number by
+ * number across lines and trusts each count ("-3" reads as 4294967293, "2-3"
+ * as 2 then -3, and a number left over, such as a face colour, as the next
+ * face's count), pushing that many corners past a failed stream. */
+bool face_line_sane(const std::vector<std::string> &words)
 {
     unsigned long long k, v;
-    if (words.size() <= count_at || !parse_count(words[count_at], k)) return false;
-    if (k > words.size() - count_at - 1) return false;
-    for (size_t i = count_at + 1; i <= count_at + k; ++i)
+    if (words.empty() || !parse_count(words[0], k)) return false;
+    if (k != words.size() - 1) return false;
+    for (size_t i = 1; i <= k; ++i)
         if (!parse_count(words[i], v)) return false;
-    return true;
-}
-
-/* OpenMesh's PLY header parser reads with operator>> and checks only
- * badbit, so one unreadable number (a count, the version) or a missing
- * "end_header" makes it loop forever, and a property before any element
- * indexes an empty list. Headers are checked here first, line by line, and
- * so are the face lines of ASCII files. */
-bool ply_sane(const char *data, size_t size)
-{
-    struct Element {
-        std::string name;
-        unsigned long long count;
-        long count_at; /* words before the face's corner count; -1: unknown */
-        bool list_seen;
-    };
-    std::vector<Element> elements;
-    std::vector<std::string> words;
-    LineWords lines(data, size);
-    bool ascii = false, format_seen = false;
-    if (!lines.next(words) || words.size() != 1 || (words[0] != "ply" && words[0] != "PLY"))
-        return false;
-    /* The scalar types OpenMesh's PLY reader knows; it reads an unknown one
-     * as something else and runs off with the counts. */
-    static const char *const types[] = {"char",  "uchar",  "short",  "ushort",  "int",     "uint",
-                                        "float", "double", "int8",   "uint8",   "int16",   "uint16",
-                                        "int32", "uint32", "float32", "float64"};
-    auto known_type = [](const std::string &t) {
-        for (const char *k : types)
-            if (t == k) return true;
-        return false;
-    };
-    long scalars = 0;
-    for (;;) {
-        if (!lines.next(words) || words.empty()) return false;
-        const std::string &w = words[0];
-        if (w == "end_header") {
-            if (words.size() != 1) return false;
-            break;
-        }
-        if (w == "comment" || w == "obj_info") continue;
-        if (w == "format") {
-            /* One format line, of a known kind: with two, OpenMesh and this
-             * check could read the body differently. */
-            char *after;
-            if (format_seen || words.size() != 3) return false;
-            if (words[1] != "ascii" && words[1] != "binary_little_endian" && words[1] != "binary_big_endian")
-                return false;
-            format_seen = true;
-            std::strtod(words[2].c_str(), &after);
-            if (*after != '\0' || after == words[2].c_str()) return false;
-            ascii = words[1] == "ascii";
-        } else if (w == "element") {
-            unsigned long long n;
-            if (words.size() != 3 || !parse_count(words[2], n) || n > UINT32_MAX) return false;
-            elements.push_back({words[1], n, -1, false});
-            scalars = 0;
-        } else if (w == "property") {
-            if (elements.empty()) return false;
-            Element &e = elements.back();
-            const bool list = words.size() > 1 && words[1] == "list";
-            if (words.size() != (list ? 5u : 3u)) return false;
-            if (list ? !known_type(words[2]) || !known_type(words[3]) : !known_type(words[1])) return false;
-            const std::string &prop = words.back();
-            if (list && (prop == "vertex_indices" || prop == "vertex_index") && !e.list_seen)
-                e.count_at = scalars;
-            if (list) e.list_seen = true;
-            else ++scalars;
-        } else {
-            return false;
-        }
-    }
-    if (!format_seen) return false;
-    if (!ascii) return true;
-    /* One element per line, as OpenMesh reads them; it stops after faces. */
-    for (const Element &e : elements) {
-        for (unsigned long long i = 0; i < e.count; ++i) {
-            if (!lines.next_nonblank(words)) return true; /* truncation: the reader says */
-            if (e.name == "face" && e.count_at >= 0 && !face_line_sane(words, size_t(e.count_at)))
-                return false;
-        }
-        if (e.name == "face") break;
-    }
     return true;
 }
 
@@ -479,7 +397,7 @@ bool off_faces_sane(const char *data, size_t size)
         if (!lines.next_nonblank(words)) return false;
     for (unsigned long long i = 0; i < nf; ++i) {
         if (!lines.next_nonblank(words)) return false;
-        if (!face_line_sane(words, 0)) return false;
+        if (!face_line_sane(words)) return false;
     }
     return true;
 }
@@ -695,6 +613,7 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
     ObjScan scan;
     if (format == "obj" && !obj_scan(static_cast<const char *>(data), size, name, scan))
         return as_get_error();
+    if (format == "ply" && as_mesh_check_ply(data, size, name) != AS_OK) return as_get_error();
     bool ok = false;
     bool stream_failed;
     {
@@ -709,8 +628,7 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
         if (format == "obj") {
             ok = OpenMesh::IO::OBJReader().read(in, rec, opt);
         } else if (format == "ply") {
-            ok = ply_sane(static_cast<const char *>(data), size) &&
-                 OpenMesh::IO::PLYReader().read(in, rec, opt);
+            ok = OpenMesh::IO::PLYReader().read(in, rec, opt);
         } else {
             ok = off_faces_sane(static_cast<const char *>(data), size) &&
                  off_prepare_header(static_cast<const char *>(data), size, file_path) &&

@@ -23,6 +23,12 @@ extern "C" {
 as_error_t as_mesh_read_openmesh(const void *data, size_t size, const char *format,
                                  const char *name, const char *file_path, as_mesh_t *mesh);
 
+/* Checks a PLY file's header and body against the format before OpenMesh's
+ * reader sees them: every count, every number, and no list property but a
+ * face's vertex indices (the reader misreads any other). Sets the error with
+ * the line (ASCII) or offset (binary) that is wrong. */
+as_error_t as_mesh_check_ply(const void *data, size_t size, const char *name);
+
 /* A Draco-compressed mesh (.drc). Draco's points become the vertices. */
 as_error_t as_mesh_read_draco(const void *data, size_t size, const char *name,
                               as_mesh_t *mesh);
