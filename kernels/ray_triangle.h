@@ -14,12 +14,15 @@ typedef struct as_ray_pre {
     int kx, ky, kz;         /* kz: the dominant axis of d (Woop et al. 2013) */
     float sx, sy, sz;       /* shear constants */
     int precise;            /* the triangle test runs in double */
+    int moller;             /* the Moller-Trumbore test instead (not watertight) */
     double dsx, dsy, dsz;   /* shear constants in double */
 } as_ray_pre_t;
 
 /* Flags of as_ray_prepare. */
 #define AS_RAY_PRECISE 1    /* watertight test in double: exact where float cancels
                                (huge triangles seen from close by, tiny ones from afar) */
+#define AS_RAY_MOLLER_TRUMBORE 2 /* Moller & Trumbore 1997 in float: the classic test,
+                                    for comparison; rays can slip through shared edges */
 
 /* The shear constants in double, for the double intersector and the
  * float one's exact distances. */
@@ -68,6 +71,7 @@ AS_HD int as_ray_prepare(const float org[3], float tmin, const float dir[3], flo
     r->sy = d[ky] / d[kz];
     r->sz = 1.0f / d[kz];
     r->precise = flags & AS_RAY_PRECISE;
+    r->moller = (flags & AS_RAY_MOLLER_TRUMBORE) != 0;
     as_ray_shear_double(r, &r->dsx, &r->dsy, &r->dsz);
     return 1;
 }
@@ -182,6 +186,38 @@ AS_HD int as_ray_triangle_precise(const as_ray_pre_t *r, const float *a, const f
     return 1;
 }
 
+/* The Moller-Trumbore test (1997), no culling, the way most tracers write
+ * it: the edge and distance arithmetic in float, each operation rounded on
+ * its own (no fused multiply-add) so that CPU and GPU agree bit for bit. It
+ * decides on each triangle alone, so a ray through a shared edge or vertex
+ * can miss both triangles, and a parallel ray (det exactly 0) misses. */
+AS_HD int as_ray_triangle_moller(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+                                 float tmax_now, float *t_out, float *u_out, float *v_out)
+{
+    const float e1x = AS_SUB(b[0], a[0]), e1y = AS_SUB(b[1], a[1]), e1z = AS_SUB(b[2], a[2]);
+    const float e2x = AS_SUB(c[0], a[0]), e2y = AS_SUB(c[1], a[1]), e2z = AS_SUB(c[2], a[2]);
+    const float px = AS_SUB(AS_MUL(r->dy, e2z), AS_MUL(r->dz, e2y));
+    const float py = AS_SUB(AS_MUL(r->dz, e2x), AS_MUL(r->dx, e2z));
+    const float pz = AS_SUB(AS_MUL(r->dx, e2y), AS_MUL(r->dy, e2x));
+    const float det = AS_ADD(AS_ADD(AS_MUL(e1x, px), AS_MUL(e1y, py)), AS_MUL(e1z, pz));
+    if (det == 0.0f) return 0;
+    const float inv = 1.0f / det;
+    const float sx = AS_SUB(r->ox, a[0]), sy = AS_SUB(r->oy, a[1]), sz = AS_SUB(r->oz, a[2]);
+    const float u = AS_MUL(AS_ADD(AS_ADD(AS_MUL(sx, px), AS_MUL(sy, py)), AS_MUL(sz, pz)), inv);
+    if (!(u >= 0.0f && u <= 1.0f)) return 0;
+    const float qx = AS_SUB(AS_MUL(sy, e1z), AS_MUL(sz, e1y));
+    const float qy = AS_SUB(AS_MUL(sz, e1x), AS_MUL(sx, e1z));
+    const float qz = AS_SUB(AS_MUL(sx, e1y), AS_MUL(sy, e1x));
+    const float v = AS_MUL(AS_ADD(AS_ADD(AS_MUL(r->dx, qx), AS_MUL(r->dy, qy)), AS_MUL(r->dz, qz)), inv);
+    if (!(v >= 0.0f && AS_ADD(u, v) <= 1.0f)) return 0;
+    const float t = AS_MUL(AS_ADD(AS_ADD(AS_MUL(e2x, qx), AS_MUL(e2y, qy)), AS_MUL(e2z, qz)), inv);
+    if (!(t >= r->tmin && t <= tmax_now)) return 0;
+    *t_out = t;
+    *u_out = u;
+    *v_out = v;
+    return 1;
+}
+
 /* Watertight ray/triangle intersection (Woop, Benthin & Wald 2013), no
  * culling. Returns 1 and sets *t, *u, *v when the ray hits the triangle with
  * tmin <= t <= tmax_now, where the hit point is (1-u-v) a + u b + v c.
@@ -190,6 +226,7 @@ AS_HD int as_ray_triangle(const as_ray_pre_t *r, const float *a, const float *b,
                           float tmax_now, float *t_out, float *u_out, float *v_out)
 {
     if (r->precise) return as_ray_triangle_precise(r, a, b, c, tmax_now, t_out, u_out, v_out);
+    if (r->moller) return as_ray_triangle_moller(r, a, b, c, tmax_now, t_out, u_out, v_out);
     const float o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
     const float A_x = AS_SUB(a[kx], o[kx]), A_y = AS_SUB(a[ky], o[ky]), A_z = AS_SUB(a[kz], o[kz]);

@@ -491,6 +491,8 @@ as_error_t launch_traversal(const T &trav, const as_gpu_resident_t *g, const as_
 {
     if (launch->ray_flags & AS_RAY_PRECISE)
         return launch_traversal_flags<AS_RAY_PRECISE>(trav, g, rays, count, hits, launch, timing);
+    if (launch->ray_flags & AS_RAY_MOLLER_TRUMBORE)
+        return launch_traversal_flags<AS_RAY_MOLLER_TRUMBORE>(trav, g, rays, count, hits, launch, timing);
     return launch_traversal_flags<0>(trav, g, rays, count, hits, launch, timing);
 }
 

@@ -55,8 +55,10 @@ static void usage(void)
            "                             counted in the untimed statistics pass\n"
            "      --heat-max N           steps drawn yellow in the heat map (default: the\n"
            "                             image's 99th percentile); the scale is printed\n"
-           "      --intersector NAME     watertight (default: float, explicitly rounded) or\n"
-           "                             watertight-double (exact where float cancels)\n"
+           "      --intersector NAME     watertight (default: float, explicitly rounded),\n"
+           "                             watertight-double (exact where float cancels) or\n"
+           "                             moller-trumbore (the classic float test, not\n"
+           "                             watertight: for comparison)\n"
            "      --runs N               GPU: timed launches after a warm-up (default 10)\n"
            "      --schedule NAME        GPU: thread (one per ray, default: measured fastest)\n"
            "                             or persistent (warps fetch --batch rays per atomic)\n"
@@ -374,7 +376,8 @@ int main(int argc, char **argv)
         case OPT_INTERSECTOR:
             if (strcmp(optarg, "watertight") == 0) targs.intersector = AS_INTERSECTOR_WATERTIGHT;
             else if (strcmp(optarg, "watertight-double") == 0) targs.intersector = AS_INTERSECTOR_WATERTIGHT_DOUBLE;
-            else return tool_usage_error(TOOL, "unknown intersector '%s' (known: watertight, watertight-double)", optarg);
+            else if (strcmp(optarg, "moller-trumbore") == 0) targs.intersector = AS_INTERSECTOR_MOLLER_TRUMBORE;
+            else return tool_usage_error(TOOL, "unknown intersector '%s' (known: watertight, watertight-double, moller-trumbore)", optarg);
             break;
         case OPT_BOUNCES: if (!tool_parse_u32(optarg, &bounces) || bounces > 64) return tool_usage_error(TOOL, "--bounces needs 0..64, got '%s'", optarg); break;
         case OPT_RESIDENCY:

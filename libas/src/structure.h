@@ -216,6 +216,9 @@ as_error_t as_kd_ropes_validate(const as_structure_t *s, const char *name);
 as_error_t as_kd_add_ropes(as_structure_t *s);
 
 /* The CPU back end: a layout's trace_cpu on every core. */
+/* The as_ray_prepare flags (ray_triangle.h) that select an intersector. */
+int as_intersector_ray_flags(as_intersector_t intersector);
+
 as_error_t as_trace_cpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                         const as_trace_args_t *args, as_trace_timing_t *timing);
 

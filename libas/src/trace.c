@@ -138,7 +138,7 @@ static as_error_t count_steps_cpu(const as_structure_t *s, const as_ray_t *rays,
     if (!count) return AS_OK;
     const size_t blocks = (count + STEPS_BLOCK - 1) / STEPS_BLOCK;
     steps_job job = {s, as_structure_ops(s), rays, hits, count, args->any_hit,
-                     args->intersector == AS_INTERSECTOR_WATERTIGHT_DOUBLE ? AS_RAY_PRECISE : 0, args->ray_steps,
+                     as_intersector_ray_flags(args->intersector), args->ray_steps,
                      as_calloc(blocks, sizeof(as_cpu_stats_t), "traversal statistics")};
     if (!job.block_stats) return as_get_error();
     as_parallel_for(as_thread_count(args->thread_count), blocks, count_steps_block, &job);
@@ -168,6 +168,8 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
     as_trace_args_default(&args);
     if (user_args) memcpy(&args, user_args, user_args->size < sizeof args ? user_args->size : sizeof args);
     if (timing) memset(timing, 0, sizeof *timing);
+    if ((unsigned)args.intersector > AS_INTERSECTOR_MOLLER_TRUMBORE)
+        return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_trace: unknown intersector %d", (int)args.intersector);
     as_device_t device = args.device;
     if (device == AS_DEVICE_AUTO) device = as_gpu_available() ? AS_DEVICE_GPU : AS_DEVICE_CPU;
     if (device == AS_DEVICE_CPU) {
@@ -192,7 +194,7 @@ as_error_t as_trace(const as_structure_t *s, const as_ray_t *rays, size_t count,
         args.schedule == AS_SCHEDULE_PERSISTENT,
         args.batch ? args.batch : 32,
         args.collect_stats,
-        args.intersector == AS_INTERSECTOR_WATERTIGHT_DOUBLE ? AS_RAY_PRECISE : 0,
+        as_intersector_ray_flags(args.intersector),
         args.collect_stats ? args.ray_steps : NULL,
     };
     return ops->trace_gpu(s, rays, count, hits, &launch, timing);

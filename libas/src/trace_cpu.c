@@ -28,11 +28,20 @@ static void trace_block(void *user, size_t block)
                         job->stats ? &job->stats[block] : NULL);
 }
 
+int as_intersector_ray_flags(as_intersector_t intersector)
+{
+    switch (intersector) {
+    case AS_INTERSECTOR_WATERTIGHT_DOUBLE: return AS_RAY_PRECISE;
+    case AS_INTERSECTOR_MOLLER_TRUMBORE: return AS_RAY_MOLLER_TRUMBORE;
+    default: return 0;
+    }
+}
+
 as_error_t as_trace_cpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                         const as_trace_args_t *args, as_trace_timing_t *timing)
 {
     cpu_job job = {s, as_structure_ops(s), rays, hits, count, args->any_hit,
-                   args->intersector == AS_INTERSECTOR_WATERTIGHT_DOUBLE ? AS_RAY_PRECISE : 0, NULL};
+                   as_intersector_ray_flags(args->intersector), NULL};
     const unsigned threads = as_thread_count(args->thread_count);
     const size_t blocks = (count + CPU_BLOCK - 1) / CPU_BLOCK;
     const double t0 = as_now_ms();

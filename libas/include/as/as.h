@@ -438,8 +438,10 @@ typedef enum as_upload_method {
 
 typedef enum as_intersector {
     AS_INTERSECTOR_WATERTIGHT = 0,        /* Woop et al. 2013 in float, explicitly rounded */
-    AS_INTERSECTOR_WATERTIGHT_DOUBLE = 1  /* the same test in double: also exact where float
+    AS_INTERSECTOR_WATERTIGHT_DOUBLE = 1, /* the same test in double: also exact where float
                                              cancels (huge or tiny triangles for their distance) */
+    AS_INTERSECTOR_MOLLER_TRUMBORE = 2    /* Moller & Trumbore 1997 in float, for comparison:
+                                             not watertight (rays slip through shared edges) */
 } as_intersector_t;
 
 typedef struct as_trace_args {
