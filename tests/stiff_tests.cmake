@@ -7,5 +7,8 @@ target_compile_definitions(test_stiff PRIVATE _POSIX_C_SOURCE=200809L AS_SCENES_
 function(as_add_stiff name structure builder layout)
   add_test(NAME stiff_${name} COMMAND test_stiff ${structure} ${builder} ${layout})
   set_tests_properties(stiff_${name} PROPERTIES SKIP_RETURN_CODE 77 LABELS stiff)
+  # The same cases traced by the CUDA kernels; skipped without a GPU.
+  add_test(NAME gpu_stiff_${name} COMMAND test_stiff --gpu ${structure} ${builder} ${layout})
+  set_tests_properties(gpu_stiff_${name} PROPERTIES SKIP_RETURN_CODE 77 LABELS "gpu;stiff")
 endfunction()
 as_add_stiff(bvh_sah bvh sah bvh2-child-bounds)

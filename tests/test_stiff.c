@@ -1,9 +1,11 @@
 /* The stiff-case suite: where floating point is hardest, each case states its
  * correct outcome and every structure variant must meet it exactly.
  *
- *   test_stiff STRUCTURE BUILDER LAYOUT [CASE]
+ *   test_stiff [--gpu] STRUCTURE BUILDER LAYOUT [CASE]
  *
- * Cases (fixed seeds): watertight, seam, signed_zero, grazing, range,
+ * With --gpu the rays are traced by the CUDA kernels (exit 77, skipped,
+ * without a usable GPU); builds and the reference stay on the CPU.
+ * Cases (fixed seeds): watertight, moller_leaks, seam, signed_zero, grazing, range,
  * degenerate, flat, duplicates, planar, surface, bad_rays. */
 #include "reference.h"
 #include "test_util.h"
@@ -15,6 +17,7 @@
 static as_build_args_t variant;
 static char variant_name[128];
 static as_intersector_t intersector = AS_INTERSECTOR_WATERTIGHT;
+static as_device_t device = AS_DEVICE_CPU;
 
 /* ---- helpers -------------------------------------------------------------- */
 
@@ -71,9 +74,10 @@ static as_hit_t *trace(const as_structure_t *s, const as_ray_t *rays, size_t n, 
 {
     as_trace_args_t ta;
     as_trace_args_default(&ta);
-    ta.device = AS_DEVICE_CPU;
+    ta.device = device;
     ta.any_hit = any_hit;
     ta.thread_count = 1; /* timings below compare rays, not cores */
+    ta.timed_runs = 3;   /* GPU: the median of three launches */
     ta.intersector = intersector;
     as_hit_t *hits = malloc(sizeof *hits * (n ? n : 1));
     as_trace_timing_t t;
@@ -120,117 +124,138 @@ static void ray_set(as_ray_t *r, double ox, double oy, double oz, double dx, dou
 
 /* ---- the cases ------------------------------------------------------------ */
 
-/* Closed, indexed meshes at the origin and translated to 1e6 and 1e7,
- * sized so the float spacing there is below 1/100 of an edge; rays aimed
- * exactly at every vertex and at edge points, from inside and outside. */
+/* A closed, indexed mesh at `offset` (kind 0: a lattice cube of shared
+ * vertices, kind 1: a sphere with pole fans), sized so the float spacing
+ * there is below 1/100 of an edge, and rays from inside and outside aimed
+ * exactly at every vertex and at points of every edge; returns how many of
+ * them miss (leak through the surface). */
+static size_t closed_mesh_leaks(int kind, double offset)
+{
+    const double edge = offset == 0.0 ? 1.0 : offset == 1e6 ? 16.0 : 128.0;
+    mesh_builder mb = {0};
+    double centre[3];
+    if (kind == 0) {
+        /* A lattice cube, n x n quads per face, shared vertices. */
+        const int n = 6;
+        uint32_t *id = malloc(sizeof(uint32_t) * (n + 1) * (n + 1) * (n + 1));
+        for (int i = 0; i <= n; ++i)
+            for (int j = 0; j <= n; ++j)
+                for (int k = 0; k <= n; ++k) {
+                    const int on = !i || !j || !k || i == n || j == n || k == n;
+                    id[(i * (n + 1) + j) * (n + 1) + k] =
+                        on ? mb_vertex(&mb, offset + i * edge, offset + j * edge, offset + k * edge) : 0;
+                }
+        for (int f = 0; f < 6; ++f) {
+            const int axis = f / 2, fixed = (f % 2) ? n : 0;
+            for (int a = 0; a < n; ++a)
+                for (int b = 0; b < n; ++b) {
+                    uint32_t v[4];
+                    const int uv[4][2] = {{a, b}, {a + 1, b}, {a + 1, b + 1}, {a, b + 1}};
+                    for (int c = 0; c < 4; ++c) {
+                        int q[3];
+                        q[axis] = fixed;
+                        q[(axis + 1) % 3] = uv[c][0];
+                        q[(axis + 2) % 3] = uv[c][1];
+                        v[c] = id[(q[0] * (n + 1) + q[1]) * (n + 1) + q[2]];
+                    }
+                    mb_triangle(&mb, v[0], v[1], v[2]);
+                    mb_triangle(&mb, v[0], v[2], v[3]);
+                }
+        }
+        free(id);
+        for (int k = 0; k < 3; ++k) centre[k] = offset + 0.5 * n * edge;
+    } else {
+        /* A latitude-longitude sphere with pole fans. */
+        const int rings = 12, segs = 24;
+        const double rad = 4.0 * edge;
+        for (int k = 0; k < 3; ++k) centre[k] = offset + rad;
+        const uint32_t top = mb_vertex(&mb, centre[0], centre[1], centre[2] + rad);
+        const uint32_t bot = mb_vertex(&mb, centre[0], centre[1], centre[2] - rad);
+        const uint32_t first = mb.nv;
+        for (int r = 1; r < rings; ++r)
+            for (int sgm = 0; sgm < segs; ++sgm) {
+                const double th = 3.14159265358979 * r / rings, ph = 6.28318530717959 * sgm / segs;
+                mb_vertex(&mb, centre[0] + rad * sin(th) * cos(ph), centre[1] + rad * sin(th) * sin(ph),
+                          centre[2] + rad * cos(th));
+            }
+#define RV(r, sgm) (first + (uint32_t)(((r) - 1) * segs + ((sgm) % segs)))
+        for (int sgm = 0; sgm < segs; ++sgm) {
+            mb_triangle(&mb, top, RV(1, sgm), RV(1, sgm + 1));
+            mb_triangle(&mb, bot, RV(rings - 1, sgm + 1), RV(rings - 1, sgm));
+        }
+        for (int r = 1; r + 1 < rings; ++r)
+            for (int sgm = 0; sgm < segs; ++sgm) {
+                mb_triangle(&mb, RV(r, sgm), RV(r + 1, sgm), RV(r + 1, sgm + 1));
+                mb_triangle(&mb, RV(r, sgm), RV(r + 1, sgm + 1), RV(r, sgm + 1));
+            }
+#undef RV
+    }
+    as_mesh_t *m = mb_finish(&mb);
+    CHECK(m != NULL);
+    if (!m) return 0;
+    as_structure_t *s = build(m, "watertight");
+    if (!s) { as_mesh_release(m); return 0; }
+    as_mesh_info_t info;
+    as_mesh_get_info(m, &info);
+    const float *p = as_mesh_positions(m);
+    const uint32_t *ix = as_mesh_indices(m);
+    as_ray_t *rays = malloc(sizeof *rays * 20 * info.triangle_count);
+    size_t n = 0;
+    const float c[3] = {(float)centre[0], (float)centre[1], (float)centre[2]};
+    for (uint32_t t = 0; t < info.triangle_count; ++t)
+        for (int e = 0; e < 3; ++e)
+            for (int w = 0; w < 4; ++w) {
+                if (w == 0 && e) continue;
+                const float *a = p + 3 * ix[3 * t + e], *b = p + 3 * ix[3 * t + (e + 1) % 3];
+                float q[3];
+                for (int k = 0; k < 3; ++k) q[k] = a[k] + 0.25f * w * (b[k] - a[k]);
+                ray_set(&rays[n++], c[0], c[1], c[2], q[0] - c[0], q[1] - c[1], q[2] - c[2], INFINITY);
+                ray_set(&rays[n++], c[0] + 3.0f * (q[0] - c[0]), c[1] + 3.0f * (q[1] - c[1]),
+                        c[2] + 3.0f * (q[2] - c[2]), -3.0f * (q[0] - c[0]), -3.0f * (q[1] - c[1]),
+                        -3.0f * (q[2] - c[2]), 1.0f);
+            }
+    as_hit_t *hits = trace(s, rays, n, 0, NULL);
+    size_t leaks = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (hits[i].prim == AS_NO_HIT && leaks < 3)
+            fprintf(stderr, "  leak: ray %zu org (%.9g %.9g %.9g) dir (%.9g %.9g %.9g) tmax %g\n", i,
+                    (double)rays[i].org[0], (double)rays[i].org[1], (double)rays[i].org[2],
+                    (double)rays[i].dir[0], (double)rays[i].dir[1], (double)rays[i].dir[2],
+                    (double)rays[i].tmax);
+        leaks += hits[i].prim == AS_NO_HIT;
+    }
+    fprintf(stderr, "  %s %s at %g: %zu rays at vertices and edges, %zu leaks%s\n", variant_name,
+            kind ? "sphere" : "lattice cube", offset, n, leaks,
+            intersector == AS_INTERSECTOR_MOLLER_TRUMBORE ? " (Moller-Trumbore)" : "");
+    free(hits);
+    free(rays);
+    as_structure_release(s);
+    as_mesh_release(m);
+    return leaks;
+}
+
+/* At the origin and translated to 1e6 and 1e7: zero leaks. */
 static void watertight_meshes_have_zero_leaks_far_from_the_origin(void)
 {
     const double offsets[] = {0.0, 1e6, 1e7};
-    for (int o = 0; o < 3; ++o) {
-        for (int kind = 0; kind < 2; ++kind) {
-            /* Float spacing at 1e7 is 1: edges of 128 keep it below 1/100. */
-            const double edge = offsets[o] == 0.0 ? 1.0 : offsets[o] == 1e6 ? 16.0 : 128.0;
-            mesh_builder mb = {0};
-            double centre[3];
-            if (kind == 0) {
-                /* A lattice cube, n x n quads per face, shared vertices. */
-                const int n = 6;
-                uint32_t *id = malloc(sizeof(uint32_t) * (n + 1) * (n + 1) * (n + 1));
-                for (int i = 0; i <= n; ++i)
-                    for (int j = 0; j <= n; ++j)
-                        for (int k = 0; k <= n; ++k) {
-                            const int on = !i || !j || !k || i == n || j == n || k == n;
-                            id[(i * (n + 1) + j) * (n + 1) + k] =
-                                on ? mb_vertex(&mb, offsets[o] + i * edge, offsets[o] + j * edge, offsets[o] + k * edge) : 0;
-                        }
-                for (int f = 0; f < 6; ++f) {
-                    const int axis = f / 2, fixed = (f % 2) ? n : 0;
-                    for (int a = 0; a < n; ++a)
-                        for (int b = 0; b < n; ++b) {
-                            uint32_t v[4];
-                            const int uv[4][2] = {{a, b}, {a + 1, b}, {a + 1, b + 1}, {a, b + 1}};
-                            for (int c = 0; c < 4; ++c) {
-                                int q[3];
-                                q[axis] = fixed;
-                                q[(axis + 1) % 3] = uv[c][0];
-                                q[(axis + 2) % 3] = uv[c][1];
-                                v[c] = id[(q[0] * (n + 1) + q[1]) * (n + 1) + q[2]];
-                            }
-                            mb_triangle(&mb, v[0], v[1], v[2]);
-                            mb_triangle(&mb, v[0], v[2], v[3]);
-                        }
-                }
-                free(id);
-                for (int k = 0; k < 3; ++k) centre[k] = offsets[o] + 0.5 * n * edge;
-            } else {
-                /* A latitude-longitude sphere with pole fans. */
-                const int rings = 12, segs = 24;
-                const double rad = 4.0 * edge;
-                for (int k = 0; k < 3; ++k) centre[k] = offsets[o] + rad;
-                const uint32_t top = mb_vertex(&mb, centre[0], centre[1], centre[2] + rad);
-                const uint32_t bot = mb_vertex(&mb, centre[0], centre[1], centre[2] - rad);
-                const uint32_t first = mb.nv;
-                for (int r = 1; r < rings; ++r)
-                    for (int sgm = 0; sgm < segs; ++sgm) {
-                        const double th = 3.14159265358979 * r / rings, ph = 6.28318530717959 * sgm / segs;
-                        mb_vertex(&mb, centre[0] + rad * sin(th) * cos(ph), centre[1] + rad * sin(th) * sin(ph),
-                                  centre[2] + rad * cos(th));
-                    }
-#define RV(r, sgm) (first + (uint32_t)(((r) - 1) * segs + ((sgm) % segs)))
-                for (int sgm = 0; sgm < segs; ++sgm) {
-                    mb_triangle(&mb, top, RV(1, sgm), RV(1, sgm + 1));
-                    mb_triangle(&mb, bot, RV(rings - 1, sgm + 1), RV(rings - 1, sgm));
-                }
-                for (int r = 1; r + 1 < rings; ++r)
-                    for (int sgm = 0; sgm < segs; ++sgm) {
-                        mb_triangle(&mb, RV(r, sgm), RV(r + 1, sgm), RV(r + 1, sgm + 1));
-                        mb_triangle(&mb, RV(r, sgm), RV(r + 1, sgm + 1), RV(r, sgm + 1));
-                    }
-#undef RV
-            }
-            as_mesh_t *m = mb_finish(&mb);
-            CHECK(m != NULL);
-            if (!m) continue;
-            as_structure_t *s = build(m, "watertight");
-            if (!s) { as_mesh_release(m); continue; }
-            as_mesh_info_t info;
-            as_mesh_get_info(m, &info);
-            const float *p = as_mesh_positions(m);
-            const uint32_t *ix = as_mesh_indices(m);
-            as_ray_t *rays = malloc(sizeof *rays * 20 * info.triangle_count);
-            size_t n = 0;
-            const float c[3] = {(float)centre[0], (float)centre[1], (float)centre[2]};
-            for (uint32_t t = 0; t < info.triangle_count; ++t)
-                for (int e = 0; e < 3; ++e)
-                    for (int w = 0; w < 4; ++w) {
-                        if (w == 0 && e) continue;
-                        const float *a = p + 3 * ix[3 * t + e], *b = p + 3 * ix[3 * t + (e + 1) % 3];
-                        float q[3];
-                        for (int k = 0; k < 3; ++k) q[k] = a[k] + 0.25f * w * (b[k] - a[k]);
-                        ray_set(&rays[n++], c[0], c[1], c[2], q[0] - c[0], q[1] - c[1], q[2] - c[2], INFINITY);
-                        ray_set(&rays[n++], c[0] + 3.0f * (q[0] - c[0]), c[1] + 3.0f * (q[1] - c[1]),
-                                c[2] + 3.0f * (q[2] - c[2]), -3.0f * (q[0] - c[0]), -3.0f * (q[1] - c[1]),
-                                -3.0f * (q[2] - c[2]), 1.0f);
-                    }
-            as_hit_t *hits = trace(s, rays, n, 0, NULL);
-            size_t leaks = 0;
-            for (size_t i = 0; i < n; ++i) {
-                if (hits[i].prim == AS_NO_HIT && leaks < 3)
-                    fprintf(stderr, "  leak: ray %zu org (%.9g %.9g %.9g) dir (%.9g %.9g %.9g) tmax %g\n", i,
-                            (double)rays[i].org[0], (double)rays[i].org[1], (double)rays[i].org[2],
-                            (double)rays[i].dir[0], (double)rays[i].dir[1], (double)rays[i].dir[2],
-                            (double)rays[i].tmax);
-                leaks += hits[i].prim == AS_NO_HIT;
-            }
-            fprintf(stderr, "  %s %s at %g: %zu rays at vertices and edges, %zu leaks\n", variant_name,
-                    kind ? "sphere" : "lattice cube", offsets[o], n, leaks);
-            CHECK_EQ_U64(leaks, 0);
-            free(hits);
-            free(rays);
-            as_structure_release(s);
-            as_mesh_release(m);
-        }
-    }
+    for (int o = 0; o < 3; ++o)
+        for (int kind = 0; kind < 2; ++kind) CHECK_EQ_U64(closed_mesh_leaks(kind, offsets[o]), 0);
+}
+
+/* The classic Moller-Trumbore test decides each triangle alone, so rays
+ * aimed at shared vertices and edges slip through: the same meshes leak.
+ * This is why the watertight test is the default, and it shows that the
+ * intersector option really changes the triangle test. */
+static void moller_trumbore_leaks_where_the_watertight_test_does_not(void)
+{
+    const double offsets[] = {0.0, 1e6, 1e7};
+    size_t leaks = 0;
+    intersector = AS_INTERSECTOR_MOLLER_TRUMBORE;
+    for (int o = 0; o < 3; ++o)
+        for (int kind = 0; kind < 2; ++kind) leaks += closed_mesh_leaks(kind, offsets[o]);
+    intersector = AS_INTERSECTOR_WATERTIGHT;
+    fprintf(stderr, "  %s Moller-Trumbore: %zu leaks in all\n", variant_name, leaks);
+    CHECK(leaks > 0);
 }
 
 /* Two triangles sharing a diagonal; rays through points of the diagonal,
@@ -658,8 +683,17 @@ static void bad_rays_miss_quickly(void)
 
 int main(int argc, char **argv)
 {
+    if (argc > 1 && strcmp(argv[1], "--gpu") == 0) {
+        device = AS_DEVICE_GPU;
+        --argc;
+        ++argv;
+        if (!as_gpu_available()) {
+            fprintf(stderr, "no usable CUDA device: skipped\n");
+            return 77;
+        }
+    }
     if (argc < 4) {
-        fprintf(stderr, "usage: %s STRUCTURE BUILDER LAYOUT [CASE]\n", argv[0]);
+        fprintf(stderr, "usage: test_stiff [--gpu] STRUCTURE BUILDER LAYOUT [CASE]\n");
         return 2;
     }
     as_build_args_default(&variant);
@@ -674,6 +708,7 @@ int main(int argc, char **argv)
     const char *only = argc > 4 ? argv[4] : NULL;
 #define CASE(name, fn) if (!only || strcmp(only, name) == 0) RUN_TEST(fn)
     CASE("watertight", watertight_meshes_have_zero_leaks_far_from_the_origin);
+    CASE("moller_leaks", moller_trumbore_leaks_where_the_watertight_test_does_not);
     CASE("seam", quad_seam_rays_hit_one_of_the_two);
     CASE("signed_zero", signed_zero_directions_give_identical_results);
     CASE("grazing", grazing_rays_match_the_reference_and_in_plane_rays_miss);
