@@ -35,12 +35,23 @@ bool copy_attribute(const draco::PointAttribute &att, uint32_t points, int compo
     return true;
 }
 
-/* An attribute is kept only when it has the components we store. */
+/* An attribute is kept only when it has the components we store, in a
+ * numeric type: Draco converts a DT_BOOL attribute by loading its raw bytes
+ * as bool, which is undefined for any byte but 0 and 1, and a file may hold
+ * any byte there. */
 const draco::PointAttribute *usable(const draco::Mesh &m, draco::GeometryAttribute::Type type,
                                     int components)
 {
     const draco::PointAttribute *att = m.GetNamedAttribute(type);
-    return att && att->num_components() >= components ? att : nullptr;
+    if (!att || att->num_components() < components) return nullptr;
+    switch (att->data_type()) {
+    case draco::DT_INT8: case draco::DT_UINT8: case draco::DT_INT16: case draco::DT_UINT16:
+    case draco::DT_INT32: case draco::DT_UINT32: case draco::DT_INT64: case draco::DT_UINT64:
+    case draco::DT_FLOAT32: case draco::DT_FLOAT64:
+        return att;
+    default:
+        return nullptr;
+    }
 }
 
 as_error_t read_draco(const void *data, size_t size, const char *name, as_mesh_t *mesh)
