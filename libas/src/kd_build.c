@@ -55,7 +55,79 @@ typedef struct kd_run {
     atomic_int oom;
     pthread_mutex_t lock;
     double done, next_report;
+    kd_scratch *free_scratch;  /* under lock; at most one per thread exists */
 } kd_run;
+
+void *kd_scratch_reserve(kd_scratch *s, size_t bytes)
+{
+    if (bytes <= s->buf_size) return s->buf;
+    const size_t size = bytes + bytes / 2;
+    void *b = malloc(size);
+    if (!b) return NULL;
+    free(s->buf);
+    s->buf = b;
+    s->buf_size = size;
+    return b;
+}
+
+/* A thread's scratch, kept from task to task: side[] has a byte per
+ * triangle, too big to allocate per node. */
+static kd_scratch *scratch_get(kd_run *run)
+{
+    pthread_mutex_lock(&run->lock);
+    kd_scratch *s = run->free_scratch;
+    if (s) run->free_scratch = s->next_free;
+    pthread_mutex_unlock(&run->lock);
+    if (s || !run->c->ops->child_states) return s;
+    s = calloc(1, sizeof *s);
+    if (s) s->side = malloc(run->c->mesh->triangle_count ? run->c->mesh->triangle_count : 1);
+    if (!s || !s->side) {
+        free(s);
+        return NULL;
+    }
+    return s;
+}
+
+static void scratch_put(kd_run *run, kd_scratch *s)
+{
+    if (!s) return;
+    pthread_mutex_lock(&run->lock);
+    s->next_free = run->free_scratch;
+    run->free_scratch = s;
+    pthread_mutex_unlock(&run->lock);
+}
+
+static void scratch_free_all(kd_run *run)
+{
+    while (run->free_scratch) {
+        kd_scratch *s = run->free_scratch;
+        run->free_scratch = s->next_free;
+        free(s->side);
+        free(s->clipped[0]);
+        free(s->clipped[1]);
+        free(s->buf);
+        free(s);
+    }
+}
+
+static int scratch_clipped_room(kd_scratch *s, uint32_t n)
+{
+    if (n <= s->clipped_cap) return 1;
+    const size_t cap = (size_t)n + n / 2;
+    for (int side = 0; side < 2; ++side) {
+        free(s->clipped[side]);
+        s->clipped[side] = malloc(sizeof(uint32_t) * cap);
+    }
+    if (!s->clipped[0] || !s->clipped[1]) {
+        free(s->clipped[0]);
+        free(s->clipped[1]);
+        s->clipped[0] = s->clipped[1] = NULL;
+        s->clipped_cap = 0;
+        return 0;
+    }
+    s->clipped_cap = cap;
+    return 1;
+}
 
 static void report(kd_run *run, double weight)
 {
@@ -210,7 +282,7 @@ static int goes_right(const kd_ref *r, const kd_split *s)
 /* Builds the subtree of task t: recurses into the left child and loops on
  * the right one, and hands the right child to an idle thread when it is big
  * enough to be worth it. */
-static void build_subtree(as_task_pool *pool, kd_run *run, kd_task t)
+static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_task t)
 {
     const kd_ctx *c = run->c;
     const kd_builder_ops *ops = c->ops;
@@ -235,12 +307,11 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_task t)
             return;
         }
         kd_ref *lr = malloc(sizeof(kd_ref) * (nl ? nl : 1)), *rr = malloc(sizeof(kd_ref) * (nr ? nr : 1));
-        uint32_t *map = ops->child_states ? malloc(sizeof(uint32_t) * 2 * (size_t)n) : NULL;
+        const int hand_down = ops->child_states != NULL;
         kd_tmp *node = new_tmp(run);
-        if (!lr || !rr || !node || (ops->child_states && !map)) {
+        if (!lr || !rr || !node || (hand_down && (!sc || !scratch_clipped_room(sc, n)))) {
             free(lr);
             free(rr);
-            free(map);
             free(node);
             atomic_store(&run->oom, 1);
             *t.slot = make_leaf(run, refs, n, t.state, t.weight);
@@ -251,41 +322,40 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_task t)
         memcpy(rbox, box, sizeof rbox);
         lbox[sp.axis + 3] = sp.pos;
         rbox[sp.axis] = sp.pos;
-        uint32_t il = 0, ir = 0;
+        uint32_t il = 0, ir = 0, cl = 0, cr = 0;
+        uint8_t *const side = hand_down ? sc->side : NULL;
         for (uint32_t i = 0; i < n; ++i) {
             const kd_ref *r = &refs[i];
-            uint32_t to_left = KD_REF_ABSENT, to_right = KD_REF_ABSENT;
+            unsigned keep = 0;
             if (goes_left(r, &sp)) {
-                to_left = il;
                 if (r->hi[sp.axis] > sp.pos) {
                     clip_ref(c->mesh, r, lbox, &lr[il]);
-                    to_left |= KD_REF_CHANGED;
+                    if (hand_down) sc->clipped[0][cl++] = il;
                 } else {
                     lr[il] = *r;
+                    keep |= KD_KEEP_LEFT;
                 }
                 ++il;
             }
             if (goes_right(r, &sp)) {
-                to_right = ir;
                 if (r->lo[sp.axis] < sp.pos) {
                     clip_ref(c->mesh, r, rbox, &rr[ir]);
-                    to_right |= KD_REF_CHANGED;
+                    if (hand_down) sc->clipped[1][cr++] = ir;
                 } else {
                     rr[ir] = *r;
+                    keep |= KD_KEEP_RIGHT;
                 }
                 ++ir;
             }
-            if (map) {
-                map[2 * (size_t)i] = to_left;
-                map[2 * (size_t)i + 1] = to_right;
-            }
+            if (side) side[r->id] = (uint8_t)keep;
         }
         void *child_state[2] = {NULL, NULL};
-        if (map) {
+        if (hand_down) {
             const kd_ref *const child_refs[2] = {lr, rr};
             const uint32_t child_n[2] = {nl, nr};
-            if (!ops->child_states(c, t.state, map, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
-            free(map);
+            sc->clipped_n[0] = cl;
+            sc->clipped_n[1] = cr;
+            if (!ops->child_states(c, t.state, sc, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
         }
         free_state(run, t.state);
         free(refs);
@@ -302,16 +372,19 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_task t)
             t = lt;
             continue;
         }
-        build_subtree(pool, run, lt);
+        build_subtree(pool, run, sc, lt);
         t = rt;
     }
 }
 
 static void build_task(as_task_pool *pool, void *task, void *user)
 {
+    kd_run *run = user;
     kd_task t;
     memcpy(&t, task, sizeof t);
-    build_subtree(pool, user, t);
+    kd_scratch *sc = scratch_get(run);
+    build_subtree(pool, run, sc, t);
+    scratch_put(run, sc);
 }
 
 static void free_tmp(kd_tmp *t)
@@ -428,8 +501,12 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     kd_task first = {refs, n, root_state, {0}, 0, (double)args->split_budget * (double)n, 1.0, &root};
     memcpy(first.box, box, sizeof box);
     const unsigned threads = as_thread_count(args->thread_count);
-    if (threads < 2 || n < 2 * PARALLEL_MIN_REFS || !as_task_pool_run(threads, sizeof first, &first, build_task, &run))
-        build_subtree(NULL, &run, first);
+    if (threads < 2 || n < 2 * PARALLEL_MIN_REFS || !as_task_pool_run(threads, sizeof first, &first, build_task, &run)) {
+        kd_scratch *sc = scratch_get(&run);
+        build_subtree(NULL, &run, sc, first);
+        scratch_put(&run, sc);
+    }
+    scratch_free_all(&run);
     pthread_mutex_destroy(&run.lock);
     if (atomic_load(&run.cancelled) || atomic_load(&run.oom) || !root) {
         free_tmp(root);

@@ -30,13 +30,35 @@ struct kd_ctx;
 typedef int (*kd_choose_fn)(const struct kd_ctx *c, void *state, const kd_ref *refs, uint32_t n, const float box[6],
                             uint32_t depth, kd_split *out);
 
-/* How a parent's references reach its children: two entries per parent
- * reference, map[2 i] for the left child and map[2 i + 1] for the right:
- * KD_REF_ABSENT, or the index in that child's array, with KD_REF_CHANGED
- * when the reference was clipped (its box in the child differs). A child's
- * references keep the parent's order. */
-#define KD_REF_ABSENT 0xffffffffu
-#define KD_REF_CHANGED 0x80000000u
+/* How a parent's references reach its children, for builders that hand
+ * data down (kd_builder_ops.child_states). A child's references keep the
+ * parent's order, which is the order of their triangle indices.
+ *
+ * side[id], for each triangle id of the parent's references: KD_KEEP_LEFT
+ * and KD_KEEP_RIGHT when the reference reaches that child unchanged (its box
+ * there is the parent's). clipped[s][0 .. clipped_n[s]) are the indices, in
+ * child s's array and in increasing order, of the references whose box the
+ * split clipped.
+ *
+ * The arrays belong to the thread building the node (one set per thread, not
+ * per node: side has one byte per triangle of the mesh); `buf` is the
+ * builder's own scratch, kd_scratch_reserve grows it. */
+#define KD_KEEP_LEFT 1u
+#define KD_KEEP_RIGHT 2u
+
+typedef struct kd_scratch {
+    uint8_t *side;
+    uint32_t *clipped[2];
+    uint32_t clipped_n[2];
+    size_t clipped_cap;
+    void *buf;
+    size_t buf_size;
+    struct kd_scratch *next_free;
+} kd_scratch;
+
+/* buf with room for `bytes` (its contents are not kept); NULL when out of
+ * memory. */
+void *kd_scratch_reserve(kd_scratch *s, size_t bytes);
 
 /* A builder: how it chooses splits, and, when it keeps per-node data (the
  * SAH builder's sorted event lists), how that data is made for the root and
@@ -46,9 +68,9 @@ typedef struct kd_builder_ops {
     kd_choose_fn choose;
     /* NULL means out of memory. */
     void *(*root_state)(const struct kd_ctx *c, const kd_ref *refs, uint32_t n);
-    /* Fills out[0] (left) and out[1] (right); returns 0 when out of memory
-     * (then both are NULL). */
-    int (*child_states)(const struct kd_ctx *c, const void *parent, const uint32_t *map, uint32_t parent_n,
+    /* Fills out[0] (left) and out[1] (right) from the parent's data and
+     * `how` (above); returns 0 when out of memory (then both are NULL). */
+    int (*child_states)(const struct kd_ctx *c, const void *parent, kd_scratch *how, uint32_t parent_n,
                         const kd_ref *const child_refs[2], const uint32_t child_n[2], void *out[2]);
     void (*free_state)(void *state);
 } kd_builder_ops;

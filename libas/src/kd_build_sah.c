@@ -17,7 +17,13 @@
  * sorted again; only the references clipped by the split (the straddling
  * ones, usually few) get new events, which are sorted on their own and
  * merged in. An event is one 64-bit word, (position, kind, reference), so
- * the lists' order is the words' order and a merge compares words. */
+ * the lists' order is the words' order and a merge compares words.
+ *
+ * The reference in an event is its triangle index, not its place in the
+ * node's array: a node's references are in triangle order (the root's are,
+ * and children keep their parent's order), so the two orders agree, and a
+ * child takes its parent's events as they are, without renumbering; a byte
+ * per triangle (kd_scratch.side) says which child keeps an event. */
 #include "kd_build.h"
 #include "task_pool.h"
 
@@ -192,7 +198,7 @@ static void root_axis_events(void *user, int a)
     }
     sah_events *e = r->e;
     size_t m = 0;
-    for (uint32_t i = 0; i < r->n; ++i) m += put_events(e->list[a] + m, &r->refs[i], a, i, &e->planar[a]);
+    for (uint32_t i = 0; i < r->n; ++i) m += put_events(e->list[a] + m, &r->refs[i], a, r->refs[i].id, &e->planar[a]);
     sort_events(e->list[a], tmp, m);
     e->count[a] = m;
     free(tmp);
@@ -200,7 +206,7 @@ static void root_axis_events(void *user, int a)
 
 static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
 {
-    if (n > EV_INDEX_MASK) return NULL;
+    if (c->mesh->triangle_count > (uint64_t)EV_INDEX_MASK + 1) return NULL;
     sah_events *e = events_alloc(2 * (size_t)n);
     if (!e) return NULL;
     e->root_n = n;
@@ -216,101 +222,92 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
 /* What the children's lists are made from, shared by the axes. */
 typedef struct child_job {
     const sah_events *parent;
-    const uint32_t *map;
+    const kd_scratch *how;
     const kd_ref *const *child_refs;
     sah_events *e[2];
-    const uint32_t *clipped_side[2];
-    size_t nc[2];
-    uint64_t *fresh[3];  /* per axis: the clipped references' events, then the sort's scratch */
-    size_t most;
+    uint64_t *fresh[3];  /* per axis: both sides' clipped references' events, then the sort's scratch */
 } child_job;
 
 /* One axis of both children: the parent's events of references that reach
- * a child unchanged, renumbered (the numbering keeps their order, so the
- * list stays sorted), merged with the sorted events of the clipped ones. */
+ * a child unchanged, merged, in the same pass, with the sorted events of the
+ * clipped ones. A fresh list ends with a sentinel above every event, so the
+ * merge needs no bounds check; a fresh event is never equal to a kept one
+ * (their triangles differ). */
 static void child_axis_events(void *user, int a)
 {
     child_job *cj = user;
+    const kd_scratch *how = cj->how;
     sah_events *const *e = cj->e;
-    uint64_t *kept[2] = {e[0]->list[a], e[1]->list[a]};
-    size_t nk[2] = {0, 0};
+    uint64_t *fresh[2], *const tmp = cj->fresh[a] + 2 * ((size_t)how->clipped_n[0] + how->clipped_n[1]) + 2;
     uint32_t planar[2] = {0, 0};
-    const uint64_t *src = cj->parent->list[a];
-    const uint32_t *map = cj->map;
-    for (size_t k = 0; k < cj->parent->count[a]; ++k) {
-        const uint64_t ev = src[k], word = ev & ~(uint64_t)EV_INDEX_MASK;
-        const uint32_t *to = map + 2 * (size_t)event_index(ev);
-        const uint32_t is_planar = event_kind(ev) == EV_PLANAR;
-        const uint32_t keep0 = !(to[0] & KD_REF_CHANGED), keep1 = !(to[1] & KD_REF_CHANGED);
-        /* Written always, kept by advancing: no branch on the side. */
-        kept[0][nk[0]] = word | to[0];
-        kept[1][nk[1]] = word | to[1];
-        nk[0] += keep0;
-        nk[1] += keep1;
-        planar[0] += keep0 & is_planar;
-        planar[1] += keep1 & is_planar;
-    }
-    uint64_t *fresh = cj->fresh[a], *tmp = fresh + 2 * cj->most;
+    fresh[0] = cj->fresh[a];
     for (int side = 0; side < 2; ++side) {
-        sah_events *ce = e[side];
-        ce->planar[a] = planar[side];
         size_t nf = 0;
-        for (size_t k = 0; k < cj->nc[side]; ++k) {
-            const uint32_t ix = cj->clipped_side[side][k];
-            nf += put_events(fresh + nf, &cj->child_refs[side][ix], a, ix, &ce->planar[a]);
+        for (uint32_t k = 0; k < how->clipped_n[side]; ++k) {
+            const kd_ref *r = &cj->child_refs[side][how->clipped[side][k]];
+            nf += put_events(fresh[side] + nf, r, a, r->id, &planar[side]);
         }
-        sort_events(fresh, tmp, nf);
-        /* Merge from the back into the same array: the kept events before
-         * the first fresh one are already in place. */
-        uint64_t *o = ce->list[a];
-        size_t i = nk[side], j = nf, w = nk[side] + nf;
-        while (j > 0) {
-            if (i > 0 && o[i - 1] > fresh[j - 1]) o[--w] = o[--i];
-            else o[--w] = fresh[--j];
-        }
-        ce->count[a] = nk[side] + nf;
+        sort_events(fresh[side], tmp, nf);
+        fresh[side][nf] = UINT64_MAX;
+        if (side == 0) fresh[1] = fresh[0] + nf + 1;
     }
+    const uint8_t *const keep = how->side;
+    uint64_t *o0 = e[0]->list[a], *o1 = e[1]->list[a];
+    const uint64_t *f0 = fresh[0], *f1 = fresh[1];
+    size_t n0 = 0, n1 = 0;
+    const uint64_t *src = cj->parent->list[a];
+    const size_t m = cj->parent->count[a];
+    for (size_t k = 0; k < m; ++k) {
+        const uint64_t ev = src[k];
+        const unsigned f = keep[event_index(ev)];
+        while (*f0 < ev) o0[n0++] = *f0++;
+        while (*f1 < ev) o1[n1++] = *f1++;
+        /* Written always, kept by advancing: no branch on the side. */
+        o0[n0] = ev;
+        o1[n1] = ev;
+        const unsigned k0 = f & KD_KEEP_LEFT, k1 = (f & KD_KEEP_RIGHT) >> 1;
+        const unsigned is_planar = event_kind(ev) == EV_PLANAR;
+        n0 += k0;
+        n1 += k1;
+        planar[0] += k0 & is_planar;
+        planar[1] += k1 & is_planar;
+    }
+    while (*f0 != UINT64_MAX) o0[n0++] = *f0++;
+    while (*f1 != UINT64_MAX) o1[n1++] = *f1++;
+    e[0]->count[a] = n0;
+    e[1]->count[a] = n1;
+    e[0]->planar[a] = planar[0];
+    e[1]->planar[a] = planar[1];
 }
 
 /* The children's lists, one pass over the parent's events per axis feeding
  * both children. */
-static int sah_child_events(const kd_ctx *c, const void *parent_state, const uint32_t *map, uint32_t parent_n,
+static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratch *how, uint32_t parent_n,
                             const kd_ref *const child_refs[2], const uint32_t child_n[2], void *out[2])
 {
     const sah_events *p = parent_state;
-    size_t changed[2] = {0, 0};
-    for (size_t i = 0; i < 2 * (size_t)parent_n; ++i)
-        changed[i & 1] += map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED);
     child_job cj;
     memset(&cj, 0, sizeof cj);
     cj.parent = p;
-    cj.map = map;
+    cj.how = how;
     cj.child_refs = child_refs;
     cj.e[0] = events_alloc(2 * (size_t)child_n[0]);
     cj.e[1] = events_alloc(2 * (size_t)child_n[1]);
-    cj.most = changed[0] > changed[1] ? changed[0] : changed[1];
     const unsigned threads = axis_threads(c, p, parent_n);
-    /* Per side: the clipped references' child indices. */
-    uint32_t *clipped = malloc(sizeof(uint32_t) * (changed[0] + changed[1] + 1));
-    uint64_t *fresh = malloc(sizeof(uint64_t) * (4 * cj.most + 1) * (threads > 1 ? 3 : 1));
-    if (!cj.e[0] || !cj.e[1] || !fresh || !clipped) {
+    const size_t nc0 = how->clipped_n[0], nc1 = how->clipped_n[1];
+    /* Per axis: both fresh lists with their sentinels, and the sort's
+     * scratch for the longer one. */
+    const size_t per_axis = 2 * (nc0 + nc1) + 2 + 2 * (nc0 > nc1 ? nc0 : nc1);
+    uint64_t *fresh = kd_scratch_reserve(how, sizeof(uint64_t) * per_axis * (threads > 1 ? 3 : 1));
+    if (!cj.e[0] || !cj.e[1] || !fresh) {
         free(cj.e[0]);
         free(cj.e[1]);
-        free(fresh);
-        free(clipped);
         out[0] = out[1] = NULL;
         return 0;
     }
-    for (int a = 0; a < 3; ++a) cj.fresh[a] = threads > 1 ? fresh + (size_t)a * (4 * cj.most + 1) : fresh;
-    cj.clipped_side[0] = clipped;
-    cj.clipped_side[1] = clipped + changed[0];
-    uint32_t *side_list[2] = {clipped, clipped + changed[0]};
-    for (size_t i = 0; i < 2 * (size_t)parent_n; ++i)
-        if (map[i] != KD_REF_ABSENT && (map[i] & KD_REF_CHANGED)) side_list[i & 1][cj.nc[i & 1]++] = map[i] & ~KD_REF_CHANGED;
+    for (int a = 0; a < 3; ++a) cj.fresh[a] = threads > 1 ? fresh + (size_t)a * per_axis : fresh;
     cj.e[0]->root_n = cj.e[1]->root_n = p->root_n;
     for_each_axis(threads, child_axis_events, &cj);
-    free(fresh);
-    free(clipped);
     out[0] = cj.e[0];
     out[1] = cj.e[1];
     return 1;
