@@ -168,8 +168,14 @@ static kd_tmp *make_leaf(kd_run *run, kd_ref *refs, uint32_t n, void *state, dou
         if (!t->ids) {
             atomic_store(&run->oom, 1);
         } else {
-            for (uint32_t i = 0; i < n; ++i) t->ids[i] = refs[i].id;
-            qsort(t->ids, n, sizeof(uint32_t), cmp_u32);
+            /* References arrive in triangle order (the root's are, children
+             * keep their parent's); the sort is for builders that would not. */
+            int sorted = 1;
+            for (uint32_t i = 0; i < n; ++i) {
+                t->ids[i] = refs[i].id;
+                sorted &= i == 0 || t->ids[i - 1] < t->ids[i];
+            }
+            if (!sorted) qsort(t->ids, n, sizeof(uint32_t), cmp_u32);
             t->count = n;
         }
     }
@@ -196,7 +202,10 @@ static float round_up(double x)
  * already holds the part inside the parent). */
 static void clip_ref(const as_mesh_t *m, const kd_ref *old, const float box[6], kd_ref *out)
 {
-    double poly[2][12][3];
+    /* Six planes add at most six vertices to the triangle's three; one more
+     * slot repeats the first vertex after the last, so that every edge is
+     * (v[i], v[i + 1]). */
+    double poly[2][10][3], dist[10];
     int cnt = 3, cur = 0;
     const uint32_t *ix = m->indices + 3 * (size_t)old->id;
     for (int v = 0; v < 3; ++v)
@@ -214,15 +223,25 @@ static void clip_ref(const as_mesh_t *m, const kd_ref *old, const float box[6], 
         const int axis = plane % 3, upper = plane >= 3;
         const double bound = box[plane];
         if (upper ? tri_hi[axis] <= bound : tri_lo[axis] >= bound) continue;
+        double (*const in)[3] = poly[cur], (*const out_poly)[3] = poly[1 - cur];
+        in[cnt][0] = in[0][0];
+        in[cnt][1] = in[0][1];
+        in[cnt][2] = in[0][2];
+        for (int i = 0; i < cnt; ++i) dist[i] = upper ? bound - in[i][axis] : in[i][axis] - bound;
+        dist[cnt] = dist[0];
         int outc = 0;
         for (int i = 0; i < cnt; ++i) {
-            const double *p = poly[cur][i], *q = poly[cur][(i + 1) % cnt];
-            const double dp = upper ? bound - p[axis] : p[axis] - bound;
-            const double dq = upper ? bound - q[axis] : q[axis] - bound;
-            if (dp >= 0) { memcpy(poly[1 - cur][outc++], p, sizeof(double) * 3); }
+            const double *p = in[i], *q = in[i + 1];
+            const double dp = dist[i], dq = dist[i + 1];
+            if (dp >= 0) {
+                out_poly[outc][0] = p[0];
+                out_poly[outc][1] = p[1];
+                out_poly[outc][2] = p[2];
+                ++outc;
+            }
             if ((dp > 0 && dq < 0) || (dp < 0 && dq > 0)) {
                 const double s = dp / (dp - dq);
-                double *r = poly[1 - cur][outc++];
+                double *r = out_poly[outc++];
                 for (int k = 0; k < 3; ++k) r[k] = p[k] + s * (q[k] - p[k]);
                 r[axis] = bound;
             }

@@ -356,11 +356,16 @@ static void sweep_axis(void *user, int axis)
     const double lo = box[axis], hi = box[axis + 3];
     for (size_t i = 0; i < m;) {
         const uint32_t key = event_key(ev[i]);
-        uint32_t kinds[3] = {0, 0, 0};
+        /* Counters in registers: an array indexed by the kind would chain
+         * its increments through memory. */
+        uint32_t e_eq = 0, p_eq = 0;
         size_t j = i;
-        do kinds[event_kind(ev[j])]++;
-        while (++j < m && event_key(ev[j]) == key);
-        const uint32_t e_eq = kinds[EV_END], p_eq = kinds[EV_PLANAR], s_eq = kinds[EV_START];
+        do {
+            const int kind = event_kind(ev[j]);
+            e_eq += kind == EV_END;
+            p_eq += kind == EV_PLANAR;
+        } while (++j < m && event_key(ev[j]) == key);
+        const uint32_t s_eq = (uint32_t)(j - i) - e_eq - p_eq;
         const float pos = key_float(key);
         if (pos > box[axis] && pos < box[axis + 3]) {
             const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
