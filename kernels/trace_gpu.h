@@ -44,6 +44,20 @@ void as_gpu_release(as_gpu_resident_t *g);
 /* Free device memory in bytes (0 when unknown). */
 uint64_t as_gpu_free_memory(void);
 
+/* What a BVH2 child-bounds structure's sections and META must agree on. */
+typedef struct as_gpu_bvh2_expect {
+    uint64_t node_count, tri_count;    /* entries of the uploaded BVH2 and TRI4 */
+    uint32_t mesh_triangles;           /* META: source triangles */
+    int clipped_leaves;                /* SBVH: leaf boxes hold clipped parts */
+    uint64_t meta_node_count, meta_leaf_count, meta_reference_count, meta_empty_leaf_count;
+    uint32_t meta_max_depth;
+} as_gpu_bvh2_expect_t;
+
+/* Validates uploaded BVH2 child-bounds sections (device[0] nodes, device[1]
+ * triangles) on the GPU with the checks of as_bvh2_validate; sets the error
+ * naming the node or triangle on failure. */
+as_error_t as_gpu_validate_bvh2(const as_gpu_resident_t *g, const char *name, const as_gpu_bvh2_expect_t *expect);
+
 /* Uploads the rays, runs one warm-up launch and `timed_runs` timed launches
  * of the layout's kernel over its resident sections (in the layout's section
  * order), and copies the hits back. timing->trace_ms is the median of the

@@ -16,6 +16,7 @@ set(_as_cli_tests
   trace_rebuild_beside_load
   trace_whitted_materials_from_mtl
   trace_validation_record_skips_known_files
+  gpu_validation_refuses_damage
   other_scenes_build_inspect_trace)
 foreach(_t ${_as_cli_tests})
   add_test(NAME cli_${_t}
@@ -24,3 +25,4 @@ foreach(_t ${_as_cli_tests})
   set_tests_properties(cli_${_t} PROPERTIES SKIP_RETURN_CODE 77 LABELS cli)
 endforeach()
 set_tests_properties(cli_other_scenes_build_inspect_trace PROPERTIES LABELS "cli;scenes")
+set_tests_properties(cli_gpu_validation_refuses_damage PROPERTIES LABELS "cli;gpu")

@@ -114,5 +114,6 @@ const as_layout_ops_t as_layout_bvh2_child_bounds = {
     .convert = bvh2_convert,
 #ifdef AS_HAVE_CUDA
     .trace_gpu = as_layout_trace_gpu,
+    .validate_gpu = as_bvh2_validate_gpu,
 #endif
 };

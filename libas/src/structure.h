@@ -133,6 +133,9 @@ typedef struct as_layout_ops {
     /* The CUDA back end, or NULL where this build has none. */
     as_error_t (*trace_gpu)(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                             const struct as_gpu_launch *launch, as_trace_timing_t *timing);
+    /* The checks of `validate`, run on the GPU over the uploaded sections
+     * (s->gpu, in device memory); NULL where the layout has none. */
+    as_error_t (*validate_gpu)(const as_structure_t *s, const char *name);
 } as_layout_ops_t;
 
 /* The table for a kind and layout, or NULL when this build has none. */
@@ -168,6 +171,8 @@ static inline double as_half_area6(float lox, float hix, float loy, float hiy, f
     return dx * dy + dy * dz + dz * dx;
 }
 as_error_t as_bvh2_validate(const as_structure_t *s, const char *name);
+/* The same checks on the GPU, over s->gpu (CUDA builds). */
+as_error_t as_bvh2_validate_gpu(const as_structure_t *s, const char *name);
 /* Parts of the BVH2 validation shared by both BVH layouts (bvh2_validate.c):
  * the TRI4 triangles; one leaf (range, box, each entry in one leaf only,
  * triangles inside the box or, for an SBVH, overlapping it; `where` names

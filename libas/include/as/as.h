@@ -491,10 +491,20 @@ typedef struct as_upload_info {
     uint64_t bytes;              /* section bytes the traversal reads */
     double upload_ms;            /* host to device, wall clock */
     double gb_per_s;
+    /* A structure loaded from a file is validated before its first upload
+     * unless it already was (as_structure_validate_recorded): on the GPU,
+     * after the copy and before any kernel reads it, where its layout has
+     * a GPU validator and it is in device memory; otherwise on the CPU
+     * first. "gpu", "cpu", or "earlier" (already validated, or built in
+     * this process). */
+    const char *validated;
+    double validate_ms;          /* wall clock; 0 for "earlier" */
 } as_upload_info_t;
 
 /* Makes the structure resident on the GPU now (the first GPU trace does it
- * otherwise); later traces reuse it until the structure is released. Not
+ * otherwise), validating it first as as_upload_info_t says; later traces
+ * reuse it until the structure is released. A structure that fails
+ * validation is not left on the device (AS_ERROR_INVALID_STRUCTURE). Not
  * thread-safe against concurrent traces of the same structure. */
 as_error_t as_structure_upload(const as_structure_t *s, const as_trace_args_t *args, as_upload_info_t *info);
 
