@@ -70,6 +70,35 @@ void *kd_scratch_reserve(kd_scratch *s, size_t bytes)
     return b;
 }
 
+/* The temporary tree's nodes and leaf lists come from per-thread chunks,
+ * all freed at once after the tree is written out: one call per chunk
+ * instead of one per node and per leaf. */
+typedef struct kd_arena_chunk {
+    struct kd_arena_chunk *next;
+    size_t used, size;
+    _Alignas(16) unsigned char data[];
+} kd_arena_chunk;
+
+#define KD_ARENA_CHUNK ((size_t)256 << 10)
+
+static void *arena_alloc(kd_scratch *s, size_t bytes)
+{
+    bytes = (bytes + 15) & ~(size_t)15;
+    kd_arena_chunk *c = s->arena;
+    if (!c || c->size - c->used < bytes) {
+        const size_t size = bytes > KD_ARENA_CHUNK ? bytes : KD_ARENA_CHUNK;
+        kd_arena_chunk *n = malloc(sizeof *n + size);
+        if (!n) return NULL;
+        n->next = c;
+        n->used = 0;
+        n->size = size;
+        s->arena = c = n;
+    }
+    void *p = c->data + c->used;
+    c->used += bytes;
+    return p;
+}
+
 /* A thread's scratch, kept from task to task: side[] has a byte per
  * triangle, too big to allocate per node. */
 static kd_scratch *scratch_get(kd_run *run)
@@ -78,10 +107,11 @@ static kd_scratch *scratch_get(kd_run *run)
     kd_scratch *s = run->free_scratch;
     if (s) run->free_scratch = s->next_free;
     pthread_mutex_unlock(&run->lock);
-    if (s || !run->c->ops->child_states) return s;
+    if (s) return s;
     s = calloc(1, sizeof *s);
-    if (s) s->side = malloc(run->c->mesh->triangle_count ? run->c->mesh->triangle_count : 1);
-    if (!s || !s->side) {
+    if (s && run->c->ops->child_states)
+        s->side = malloc(run->c->mesh->triangle_count ? run->c->mesh->triangle_count : 1);
+    if (!s || (run->c->ops->child_states && !s->side)) {
         free(s);
         return NULL;
     }
@@ -106,6 +136,11 @@ static void scratch_free_all(kd_run *run)
         free(s->clipped[0]);
         free(s->clipped[1]);
         free(s->buf);
+        while (s->arena) {
+            kd_arena_chunk *c = s->arena;
+            s->arena = c->next;
+            free(c);
+        }
         free(s);
     }
 }
@@ -147,10 +182,11 @@ static int cmp_u32(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
-static kd_tmp *new_tmp(kd_run *run)
+static kd_tmp *new_tmp(kd_run *run, kd_scratch *sc)
 {
-    kd_tmp *t = calloc(1, sizeof *t);
-    if (!t) atomic_store(&run->oom, 1);
+    kd_tmp *t = arena_alloc(sc, sizeof *t);
+    if (t) memset(t, 0, sizeof *t);
+    else atomic_store(&run->oom, 1);
     return t;
 }
 
@@ -159,12 +195,12 @@ static void free_state(const kd_run *run, void *state)
     if (state && run->c->ops->free_state) run->c->ops->free_state(state);
 }
 
-static kd_tmp *make_leaf(kd_run *run, kd_ref *refs, uint32_t n, void *state, double weight)
+static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, void *state, double weight)
 {
     free_state(run, state);
-    kd_tmp *t = new_tmp(run);
+    kd_tmp *t = new_tmp(run, sc);
     if (t && n) {
-        t->ids = malloc(sizeof(uint32_t) * n);
+        t->ids = arena_alloc(sc, sizeof(uint32_t) * n);
         if (!t->ids) {
             atomic_store(&run->oom, 1);
         } else {
@@ -313,7 +349,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         if (atomic_load(&run->cancelled) || atomic_load(&run->oom) || n == 0 || t.depth >= c->max_depth ||
             !ops->choose(c, t.state, refs, n, box, t.depth, &sp) ||
             !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3])) {
-            *t.slot = make_leaf(run, refs, n, t.state, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
         }
         uint32_t nl = 0, nr = 0;
@@ -322,18 +358,17 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             nr += (uint32_t)goes_right(&refs[i], &sp);
         }
         if ((nl == n && nr == n) || (double)nl + (double)nr > t.share) {
-            *t.slot = make_leaf(run, refs, n, t.state, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
         }
         kd_ref *lr = malloc(sizeof(kd_ref) * (nl ? nl : 1)), *rr = malloc(sizeof(kd_ref) * (nr ? nr : 1));
         const int hand_down = ops->child_states != NULL;
-        kd_tmp *node = new_tmp(run);
-        if (!lr || !rr || !node || (hand_down && (!sc || !scratch_clipped_room(sc, n)))) {
+        kd_tmp *node = new_tmp(run, sc);
+        if (!lr || !rr || !node || (hand_down && !scratch_clipped_room(sc, n))) {
             free(lr);
             free(rr);
-            free(node);
             atomic_store(&run->oom, 1);
-            *t.slot = make_leaf(run, refs, n, t.state, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
         }
         float lbox[6], rbox[6];
@@ -402,17 +437,14 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     kd_task t;
     memcpy(&t, task, sizeof t);
     kd_scratch *sc = scratch_get(run);
+    if (!sc) {
+        atomic_store(&run->oom, 1);
+        free_state(run, t.state);
+        free(t.refs);
+        return;
+    }
     build_subtree(pool, run, sc, t);
     scratch_put(run, sc);
-}
-
-static void free_tmp(kd_tmp *t)
-{
-    if (!t) return;
-    free_tmp(t->child[0]);
-    free_tmp(t->child[1]);
-    free(t->ids);
-    free(t);
 }
 
 typedef struct kd_counts {
@@ -520,15 +552,11 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     kd_task first = {refs, n, root_state, {0}, 0, (double)args->split_budget * (double)n, 1.0, &root};
     memcpy(first.box, box, sizeof box);
     const unsigned threads = as_thread_count(args->thread_count);
-    if (threads < 2 || n < 2 * PARALLEL_MIN_REFS || !as_task_pool_run(threads, sizeof first, &first, build_task, &run)) {
-        kd_scratch *sc = scratch_get(&run);
-        build_subtree(NULL, &run, sc, first);
-        scratch_put(&run, sc);
-    }
-    scratch_free_all(&run);
+    if (threads < 2 || n < 2 * PARALLEL_MIN_REFS || !as_task_pool_run(threads, sizeof first, &first, build_task, &run))
+        build_task(NULL, &first, &run);
     pthread_mutex_destroy(&run.lock);
     if (atomic_load(&run.cancelled) || atomic_load(&run.oom) || !root) {
-        free_tmp(root);
+        scratch_free_all(&run);
         free(tris);
         if (atomic_load(&run.cancelled)) return as_set_error(AS_ERROR_CANCELLED, "KD build cancelled by the progress callback");
         return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory building a KD tree");
@@ -537,7 +565,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     memset(&kc, 0, sizeof kc);
     count_tmp(root, 0, &kc);
     if (kc.nodes >= (1u << 30) || kc.leaves + kc.refs >= UINT32_MAX) {
-        free_tmp(root);
+        scratch_free_all(&run);
         free(tris);
         return as_set_error(AS_ERROR_UNSUPPORTED, "KD tree too large for 32-bit indices");
     }
@@ -547,12 +575,12 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
         free(nodes);
         free(prim);
         free(tris);
-        free_tmp(root);
+        scratch_free_all(&run);
         return as_get_error();
     }
     kd_emit e = {nodes, prim, 0, 0, 0};
     emit(root, &e);
-    free_tmp(root);
+    scratch_free_all(&run);
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_KD, AS_LAYOUT_KD_STANDARD, AS_KD_LAYOUT_VERSION, ops->builder);
     /* The tree's root box, which the traversal starts from. */

@@ -54,6 +54,7 @@ typedef struct kd_scratch {
     void *buf;
     size_t buf_size;
     struct kd_scratch *next_free;
+    struct kd_arena_chunk *arena; /* the driver's: the tree's nodes and leaf lists */
 } kd_scratch;
 
 /* buf with room for `bytes` (its contents are not kept); NULL when out of
