@@ -31,6 +31,9 @@ static void usage(void)
            "      --target X,Y,Z         point the camera looks at\n"
            "      --up X,Y,Z             up vector (default 0,1,0)\n"
            "      --fov DEGREES          vertical field of view (default 45)\n"
+           "      --camera FILE          the camera from a file of lines 'eye X Y Z',\n"
+           "                             'target X Y Z', 'up X Y Z', 'fov DEGREES' (the\n"
+           "                             options above override it)\n"
            "                             Default camera: looking down -z at the centre of\n"
            "                             the scene box from where its bounding sphere fits.\n"
            "  -W, --width N              image width (default 1920)\n"
@@ -265,7 +268,7 @@ static int rebuild(const as_mesh_t *mesh, const as_structure_stats_t *file, unsi
 
 int main(int argc, char **argv)
 {
-    enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
+    enum { OPT_EYE = 256, OPT_TARGET, OPT_UP, OPT_FOV, OPT_CAMERA, OPT_RAYS, OPT_HITS, OPT_ANY, OPT_RUNS, OPT_THREADS,
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
            OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
            OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD,
@@ -276,6 +279,7 @@ int main(int argc, char **argv)
         {"eye", required_argument, 0, OPT_EYE},
         {"target", required_argument, 0, OPT_TARGET},
         {"up", required_argument, 0, OPT_UP},
+        {"camera", required_argument, 0, OPT_CAMERA},
         {"fov", required_argument, 0, OPT_FOV},
         {"width", required_argument, 0, 'W'},
         {"height", required_argument, 0, 'H'},
@@ -317,7 +321,8 @@ int main(int argc, char **argv)
     as_load_args_default(&load);
     float eye[3], target[3], up[3] = {0, 1, 0}, fov = 45.0f, lights[3 * 16], ao_radius = 0.1f;
     unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4, bounces = 10;
-    int have_eye = 0, have_target = 0, have_fov = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
+    const char *camera_path = NULL;
+    int have_eye = 0, have_target = 0, have_fov = 0, have_up = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
     unsigned width = 1920, height = 1080, u, heat_max = 0;
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL, *heat_path = NULL,
                *rebuild_path = NULL, *materials_path = NULL, *record_path = NULL;
@@ -341,7 +346,8 @@ int main(int argc, char **argv)
             break;
         case OPT_EYE: if (!tool_parse_vec3(optarg, eye)) return tool_usage_error(TOOL, "--eye needs X,Y,Z, got '%s'", optarg); have_eye = 1; break;
         case OPT_TARGET: if (!tool_parse_vec3(optarg, target)) return tool_usage_error(TOOL, "--target needs X,Y,Z, got '%s'", optarg); have_target = 1; break;
-        case OPT_UP: if (!tool_parse_vec3(optarg, up)) return tool_usage_error(TOOL, "--up needs X,Y,Z, got '%s'", optarg); break;
+        case OPT_UP: if (!tool_parse_vec3(optarg, up)) return tool_usage_error(TOOL, "--up needs X,Y,Z, got '%s'", optarg); have_up = 1; break;
+        case OPT_CAMERA: camera_path = optarg; break;
         case OPT_FOV:
             if (!tool_parse_float(optarg, &fov) || fov <= 0 || fov >= 180) return tool_usage_error(TOOL, "--fov needs degrees in (0, 180), got '%s'", optarg);
             have_fov = 1;
@@ -481,8 +487,9 @@ int main(int argc, char **argv)
         if (as_rays_read(rays_path, &rays, &count) != AS_OK) { code = tool_fail(TOOL); goto done; }
     } else {
         as_camera_default(st.bounds_lo, st.bounds_hi, &cam);
+        if (camera_path && as_camera_read(camera_path, &cam) != AS_OK) { code = tool_fail(TOOL); goto done; }
         if (have_eye) { memcpy(cam.eye, eye, sizeof eye); memcpy(cam.target, target, sizeof target); }
-        memcpy(cam.up, up, sizeof up);
+        if (have_up || !camera_path) memcpy(cam.up, up, sizeof up);
         if (have_fov) cam.fov_y_degrees = fov;
         count = (size_t)width * height;
         rays = malloc(sizeof *rays * count);

@@ -1,7 +1,12 @@
 /* Pinhole cameras: the default view of a box and one ray per pixel. */
 #include "as_internal.h"
 
+#include <errno.h>
+#include <float.h>
 #include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 static void normalize3(float v[3])
 {
@@ -52,4 +57,76 @@ void as_camera_rays(const as_camera_t *cam, uint32_t width, uint32_t height, as_
             ray->tmax = INFINITY;
         }
     }
+}
+
+/* Reads "KEY numbers" lines; `line` is NUL-terminated, without its newline. */
+static int read_numbers(const char *s, float *out, int n)
+{
+    for (int i = 0; i < n; ++i) {
+        char *after;
+        const double v = strtod(s, &after);
+        if (after == s || !isfinite(v) || fabs(v) > FLT_MAX) return 0;
+        out[i] = (float)v;
+        s = after;
+    }
+    while (*s == ' ' || *s == '\t' || *s == '\r') ++s;
+    return *s == '\0';
+}
+
+as_error_t as_camera_read(const char *path, as_camera_t *cam)
+{
+    if (!path || !cam) return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_camera_read: NULL argument");
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return as_set_error(errno == ENOENT ? AS_ERROR_FILE_NOT_FOUND : AS_ERROR_IO, "%s: cannot open: %s", path,
+                            strerror(errno));
+    as_camera_t c = {{0, 0, 0}, {0, 0, 0}, {0, 1, 0}, 45.0f};
+    int have_eye = 0, have_target = 0;
+    char line[512];
+    unsigned lineno = 0;
+    as_error_t err = AS_OK;
+    while (err == AS_OK && fgets(line, sizeof line, f)) {
+        ++lineno;
+        const size_t len = strlen(line);
+        if (len == sizeof line - 1 && line[len - 1] != '\n' && !feof(f)) {
+            err = as_set_error(AS_ERROR_PARSE, "%s: line %u: longer than %zu characters", path, lineno, sizeof line - 2);
+            break;
+        }
+        line[strcspn(line, "\n")] = '\0';
+        char *p = line;
+        while (*p == ' ' || *p == '\t') ++p;
+        if (*p == '\0' || *p == '#' || *p == '\r') continue;
+        char *key = p;
+        while (*p && *p != ' ' && *p != '\t') ++p;
+        const size_t key_len = (size_t)(p - key);
+        float *dst = NULL;
+        int n = 3;
+        if (key_len == 3 && strncmp(key, "eye", 3) == 0) dst = c.eye, have_eye = 1;
+        else if (key_len == 6 && strncmp(key, "target", 6) == 0) dst = c.target, have_target = 1;
+        else if (key_len == 2 && strncmp(key, "up", 2) == 0) dst = c.up;
+        else if (key_len == 3 && strncmp(key, "fov", 3) == 0) dst = &c.fov_y_degrees, n = 1;
+        if (!dst) {
+            err = as_set_error(AS_ERROR_PARSE, "%s: line %u: unknown key '%.*s' (known: eye, target, up, fov)", path,
+                               lineno, (int)(key_len > 32 ? 32 : key_len), key);
+        } else if (!read_numbers(p, dst, n)) {
+            err = as_set_error(AS_ERROR_PARSE, "%s: line %u: '%.*s' takes %s", path, lineno, (int)key_len, key,
+                               n == 1 ? "one finite number" : "three finite numbers");
+        } else if (n == 1 && !(c.fov_y_degrees > 0.0f && c.fov_y_degrees < 180.0f)) {
+            err = as_set_error(AS_ERROR_PARSE, "%s: line %u: fov must be in (0, 180) degrees", path, lineno);
+        }
+    }
+    if (err == AS_OK && ferror(f)) err = as_set_error(AS_ERROR_IO, "%s: read error", path);
+    fclose(f);
+    if (err != AS_OK) return err;
+    if (!have_eye || !have_target)
+        return as_set_error(AS_ERROR_PARSE, "%s: a camera needs both 'eye' and 'target'", path);
+    const float d[3] = {c.target[0] - c.eye[0], c.target[1] - c.eye[1], c.target[2] - c.eye[2]};
+    float side[3];
+    cross3(d, c.up, side);
+    if (d[0] == 0.0f && d[1] == 0.0f && d[2] == 0.0f)
+        return as_set_error(AS_ERROR_PARSE, "%s: eye and target are the same point", path);
+    if (side[0] == 0.0f && side[1] == 0.0f && side[2] == 0.0f)
+        return as_set_error(AS_ERROR_PARSE, "%s: 'up' is zero or parallel to the view direction", path);
+    *cam = c;
+    return AS_OK;
 }

@@ -628,6 +628,13 @@ typedef struct as_camera {
  * up +y, 45 degrees, at a distance that fits the bounding sphere. */
 void as_camera_default(const float bounds_lo[3], const float bounds_hi[3], as_camera_t *cam);
 
+/* Reads a camera file: text lines "eye X Y Z", "target X Y Z" (both
+ * required), "up X Y Z" (default 0 1 0) and "fov DEGREES" (vertical,
+ * default 45), in any order; blank lines and lines starting with '#' are
+ * skipped. AS_ERROR_PARSE names the file and line of an unknown key or a
+ * bad number, and refuses eye = target or an up along the view. */
+as_error_t as_camera_read(const char *path, as_camera_t *cam);
+
 /* One ray per pixel through the pixel centres, row-major from the top-left,
  * right-handed (x right, y up, looking down -z in camera space), tmin 0,
  * tmax infinity. `rays` has width * height entries. */
