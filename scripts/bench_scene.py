@@ -177,12 +177,17 @@ def main():
             rows.append(row)
             progress("[%d/%d] %s: %s (%.0f s)" % (i + 1, len(chosen), name, row.get("error", "ok"),
                                                   time.monotonic() - t0))
+            # Rewritten after every variant: a run cut short keeps what it measured.
+            write(args, rows, started)
+    return 0
+
+
+def write(args, rows, started):
     with open(args.out, "w") as f:
         f.write(markdown(args, rows, started))
     with open(os.path.splitext(args.out)[0] + ".json", "w") as f:
         json.dump({"scene": args.scene, "date": started, "commit": args.commit, "width": args.width,
                    "height": args.height, "runs": args.runs, "rows": rows}, f, indent=1)
-    return 0
 
 
 if __name__ == "__main__":
