@@ -172,7 +172,7 @@ def main():
     scene = os.path.join(src, "scenes", "bunny.drc")
     out = os.path.join(work, mode)
     shutil.rmtree(out, ignore_errors=True)
-    common = [tool, "--bin", tool_dir, "--device", "cpu", "-W", "64", "-H", "48", "--out", out]
+    common = [tool, "--bin", tool_dir, "--device", "cpu", "--width", "64", "--height", "48", "--out", out]
 
     code, _, err = run(common + [scene, "--intersectors", "watertight,no-such-test"])
     check(code == 1 and "no-such-test" in err, "an intersector as-trace does not know is a usage error (exit %d)" % code)

@@ -3,7 +3,8 @@
 
     check_man_pages.py TOOL_DIR SOURCE_DIR
 
-For every tool (as-build, as-inspect, as-convert, as-trace, as-study):
+For every tool (as-build, as-inspect, as-convert, as-trace, as-study,
+as-accuracy):
 
 - the page has the sections NAME, SYNOPSIS, DESCRIPTION, OPTIONS,
   EXIT STATUS, EXAMPLES and SEE ALSO;
@@ -30,9 +31,9 @@ import subprocess
 import sys
 import tempfile
 
-TOOLS = ["as-build", "as-inspect", "as-convert", "as-trace", "as-study"]
-# as-study is a Python script; its --help (argparse) prints no exit codes in
-# the C tools' format.
+TOOLS = ["as-build", "as-inspect", "as-convert", "as-trace", "as-study", "as-accuracy"]
+# as-study and as-accuracy are Python scripts; their --help (argparse) prints
+# no exit codes in the C tools' format.
 C_TOOLS = TOOLS[:4]
 SECTIONS = ["NAME", "SYNOPSIS", "DESCRIPTION", "OPTIONS", "EXIT STATUS", "EXAMPLES", "SEE ALSO"]
 
@@ -136,13 +137,14 @@ def main():
 
     scratch = tempfile.mkdtemp(prefix="as-man.")
     try:
-        # The tools by name, as the pages call them; as-study finds the others
-        # beside itself.
+        # The tools by name, as the pages call them; as-study and as-accuracy
+        # find the others beside themselves.
         bindir = os.path.join(scratch, "bin")
         os.mkdir(bindir)
         for t in C_TOOLS:
             os.symlink(os.path.join(tool_dir, t), os.path.join(bindir, t))
-        os.symlink(os.path.join(src, "tools", "as-study"), os.path.join(bindir, "as-study"))
+        for script in TOOLS[4:]:
+            os.symlink(os.path.join(src, "tools", script), os.path.join(bindir, script))
         work = os.path.join(scratch, "work")
         os.mkdir(work)
         shutil.copy(os.path.join(src, "scenes", "bunny.drc"), work)
