@@ -59,7 +59,8 @@ def check_accuracy(out, requested, variants, workloads):
     for key in ("tool", "version", "mode", "scene", "device", "device_name", "width", "height", "requested_verify",
                 "intersectors", "intersectors_missing", "workloads", "rows", "command", "complete"):
         check(key in data, "accuracy.json has '%s'" % key)
-    check(data.get("complete") is True and data.get("variants_done") == len(variants), "accuracy.json says it is complete")
+    check(data.get("complete") is True and data.get("variants_done") == data.get("variants_planned"),
+          "accuracy.json says it is complete")
     inters = data.get("intersectors", [])
     check("watertight" in inters and "watertight-double" in inters,
           "both watertight intersectors measured (%s)" % ", ".join(inters))
@@ -163,6 +164,28 @@ def check_sweep(out, builders, verify):
     check(ok, "build-sweep.svg is well-formed SVG with markers (%s)" % why)
 
 
+def check_merge(common, scene, path, args, measured_again):
+    """A second run into the same folder with --merge measures part of the
+    first run again: the rows it does not measure are kept as they were,
+    those it does are new, and a run with another image is refused."""
+    before = json.load(open(path))["rows"]
+    code, _, err = run(common + [scene, "--merge"] + args)
+    if not check(code == 0, "a --merge run of part of it exits 0 (%s)" % (err.strip().splitlines() or [""])[-1]):
+        return
+    after = json.load(open(path))
+    key = lambda r: json.dumps(r, sort_keys=True)
+    kept = [r for r in before if not measured_again(r)]
+    check(len(after["rows"]) == len(before) and after["merged_rows"] == len(kept) and
+          all(r in after["rows"] for r in kept),
+          "--merge keeps the %d rows it did not measure and replaces the %d it did"
+          % (len(kept), len(before) - len(kept)))
+    check(sorted(map(key, after["rows"])) != sorted(map(key, before)), "--merge wrote the rows it measured anew")
+    wider = [a if a != "64" else "80" for a in common]
+    code, _, err = run(wider + [scene, "--merge"] + args)
+    check(code == 1 and "--merge" in err, "--merge into a folder measured at another image size is refused (exit %d)"
+          % code)
+
+
 def main():
     if len(sys.argv) != 5 or sys.argv[1] not in ("accuracy", "build-sweep"):
         sys.stderr.write(__doc__)
@@ -188,10 +211,18 @@ def main():
         code, _, err = run(common + [scene, "--verify", "5000", "--variants", ",".join(variants)])
         if check(code == 0, "as-accuracy exits 0 (%s)" % (err.strip().splitlines() or [""])[-1]):
             check_accuracy(os.path.join(out, "bunny"), 5000, variants, workloads)
+            check_merge(common, scene, os.path.join(out, "bunny", "accuracy.json"),
+                        ["--verify", "5000", "--variants", variants[0], "--intersectors", "watertight"],
+                        lambda r: r["variant"] == variants[0] and r["intersector"] == "watertight")
+            check_accuracy(os.path.join(out, "bunny"), 5000, variants, workloads)
     else:
         builders = ["bvh-sah", "grid"]
         code, _, err = run(common + ["--build-sweep", scene, "--verify", "500", "--builders", ",".join(builders)])
         if check(code == 0, "as-accuracy --build-sweep exits 0 (%s)" % (err.strip().splitlines() or [""])[-1]):
+            check_sweep(os.path.join(out, "bunny"), builders, 500)
+            check_merge(common, scene, os.path.join(out, "bunny", "build-sweep.json"),
+                        ["--build-sweep", "--verify", "500", "--builders", builders[1]],
+                        lambda r: r["sweep"] == builders[1])
             check_sweep(os.path.join(out, "bunny"), builders, 500)
     print("%d checks failed" % len(FAILS) if FAILS else "all checks passed")
     return 1 if FAILS else 0
