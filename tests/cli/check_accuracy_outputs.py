@@ -7,13 +7,15 @@ checks what it wrote.
 accuracy: two variants, every intersector this as-trace knows, the four
 workloads, 5,000 rays verified per workload (more than the 3,072 primary
 rays of a 64 x 48 image, so the table must say the primary rays fell
-short). build-sweep: two builders' series, 500 rays verified. Then, for the
-mode run: the JSON has every field, the counts add up (no mismatch count
-above the rays checked, no more checked than traced or asked for, ppm and
-95% bounds from the counts, Mrays/s positive), the CSV has the JSON's rows,
-the markdown table names every row, and the SVG is well-formed XML. Also
-the usage errors that must not start a run. Prints one line per check;
-exits 0 when all pass, 1 otherwise.
+short), then part of it again with --merge. build-sweep: two builders'
+series, 500 rays verified, the camera from a file (SCENE@FILE), then one
+builder again with --merge. Then, for the mode run: the JSON has every
+field, the counts add up (no mismatch count above the rays checked, no more
+checked than traced or asked for, ppm and 95% bounds from the counts,
+Mrays/s positive), the CSV has the JSON's rows, the markdown table names
+every row, and the SVG is well-formed XML. Also the usage errors that must
+not start a run. Prints one line per check; exits 0 when all pass, 1
+otherwise.
 """
 import csv
 import json
@@ -132,6 +134,7 @@ def check_sweep(out, builders, verify):
     for key in ("tool", "version", "mode", "scene", "device", "device_name", "width", "height", "rows", "command", "complete"):
         check(key in data, "build-sweep.json has '%s'" % key)
     check(data.get("complete") is True, "build-sweep.json says it is complete")
+    check(str(data.get("camera")).endswith("bunny.cam"), "build-sweep.json names the camera file")
     rows = data.get("rows", [])
     check(not [r for r in rows if "error" in r], "no failed build or trace (%s)"
           % "; ".join(r["error"] for r in rows if "error" in r))
@@ -217,6 +220,11 @@ def main():
             check_accuracy(os.path.join(out, "bunny"), 5000, variants, workloads)
     else:
         builders = ["bvh-sah", "grid"]
+        # The sweep also takes the camera from a file, as SCENE@FILE.
+        cam = os.path.join(work, "bunny.cam")
+        with open(cam, "w") as f:
+            f.write("eye -0.0168405 0.110152 0.325428\ntarget -0.0168405 0.110152 -0.00153505\nup 0 1 0\nfov 45\n")
+        scene = scene + "@" + cam
         code, _, err = run(common + ["--build-sweep", scene, "--verify", "500", "--builders", ",".join(builders)])
         if check(code == 0, "as-accuracy --build-sweep exits 0 (%s)" % (err.strip().splitlines() or [""])[-1]):
             check_sweep(os.path.join(out, "bunny"), builders, 500)
