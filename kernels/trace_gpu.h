@@ -57,6 +57,45 @@ typedef struct as_gpu_bvh2_expect {
  * triangles) on the GPU with the checks of as_bvh2_validate; sets the error
  * naming the node or triangle on failure. */
 as_error_t as_gpu_validate_bvh2(const as_gpu_resident_t *g, const char *name, const as_gpu_bvh2_expect_t *expect);
+/* The same for BVH2 own-bounds sections (device[0] BVHO, device[1] TRI4),
+ * with the checks of as_bvh2_own_validate; node_count is BVHO's records,
+ * META's node count the inner nodes among them. */
+as_error_t as_gpu_validate_bvh2_own(const as_gpu_resident_t *g, const char *name, const as_gpu_bvh2_expect_t *expect);
+
+/* What a KD structure's sections and META must agree on (kd-standard:
+ * device[0] KDN8, [1] PRIM, [2] TRIS; kd-ropes also [3] KDRP, [4] KDLB). */
+typedef struct as_gpu_kd_expect {
+    uint64_t node_count, prim_count, tri_count;
+    int ropes;                         /* kd-ropes: check KDRP and KDLB too */
+    uint64_t rope_count, leaf_box_count;
+    uint32_t mesh_triangles;
+    float bounds_lo[3], bounds_hi[3];  /* META: the root's box */
+    uint64_t meta_node_count, meta_leaf_count, meta_reference_count, meta_empty_leaf_count;
+    uint32_t meta_max_depth;
+} as_gpu_kd_expect_t;
+
+/* Validates uploaded KD sections on the GPU with the checks of
+ * as_kd_validate (ropes: as_kd_ropes_validate). */
+as_error_t as_gpu_validate_kd(const as_gpu_resident_t *g, const char *name, const as_gpu_kd_expect_t *expect);
+
+/* What a BIH, octree or grid structure's sections and META must agree on. */
+typedef struct as_gpu_spatial_expect {
+    uint64_t header_count;             /* octree OCTH, grid GRDH records (1) */
+    uint64_t node_count;               /* BIH BIHN, octree OCTN; grid: GRDC offsets */
+    uint64_t prim_count, tri_count;
+    uint32_t mesh_triangles;
+    float bounds_lo[3], bounds_hi[3];  /* META: the scene box (BIH) */
+    uint64_t meta_node_count, meta_leaf_count, meta_reference_count, meta_empty_leaf_count;
+    uint32_t meta_max_depth;
+} as_gpu_spatial_expect_t;
+
+/* Validate uploaded sections on the GPU with the checks of the CPU
+ * validators: BIH (device[0] BIHN, [1] PRIM, [2] TRIS; as_bih_validate),
+ * octree ([0] OCTH, [1] OCTN, [2] PRIM, [3] TRIS; as_octree_validate),
+ * grid ([0] GRDH, [1] GRDC, [2] PRIM, [3] TRIS; as_grid_validate). */
+as_error_t as_gpu_validate_bih(const as_gpu_resident_t *g, const char *name, const as_gpu_spatial_expect_t *expect);
+as_error_t as_gpu_validate_octree(const as_gpu_resident_t *g, const char *name, const as_gpu_spatial_expect_t *expect);
+as_error_t as_gpu_validate_grid(const as_gpu_resident_t *g, const char *name, const as_gpu_spatial_expect_t *expect);
 
 /* Uploads the rays, runs one warm-up launch and `timed_runs` timed launches
  * of the layout's kernel over its resident sections (in the layout's section

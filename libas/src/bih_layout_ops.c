@@ -95,5 +95,6 @@ const as_layout_ops_t as_layout_bih = {
     .trace_cpu = bih_trace_cpu,
 #ifdef AS_HAVE_CUDA
     .trace_gpu = as_layout_trace_gpu,
+    .validate_gpu = as_bih_validate_gpu,
 #endif
 };

@@ -224,6 +224,7 @@ const as_layout_ops_t as_layout_bvh2_own_bounds = {
     .trace_cpu = own_trace_cpu,
 #ifdef AS_HAVE_CUDA
     .trace_gpu = as_layout_trace_gpu,
+    .validate_gpu = as_bvh2_own_validate_gpu,
 #endif
     .convert = own_convert,
 };

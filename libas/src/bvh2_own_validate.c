@@ -3,6 +3,7 @@
  * bounds, into a loop, or past its stack. */
 #include "structure.h"
 #include "bvh2_own_layout.h"
+#include "trace_gpu.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -127,3 +128,23 @@ done:
     free(depths);
     return err;
 }
+
+#ifdef AS_HAVE_CUDA
+as_error_t as_bvh2_own_validate_gpu(const as_structure_t *s, const char *name)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_BVHO), *ts = as_structure_find(s, ASF_TAG_TRI4);
+    if (!ns || !ts || !s->gpu) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: BVHO or TRI4 section missing", name);
+    const as_gpu_bvh2_expect_t e = {
+        .node_count = ns->count,
+        .tri_count = ts->count,
+        .mesh_triangles = s->meta.triangle_count,
+        .clipped_leaves = s->meta.builder == AS_BUILDER_BVH_SBVH,
+        .meta_node_count = s->meta.node_count,
+        .meta_leaf_count = s->meta.leaf_count,
+        .meta_reference_count = s->meta.reference_count,
+        .meta_empty_leaf_count = s->meta.empty_leaf_count,
+        .meta_max_depth = s->meta.max_depth,
+    };
+    return as_gpu_validate_bvh2_own(s->gpu, name, &e);
+}
+#endif

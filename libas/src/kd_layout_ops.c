@@ -161,6 +161,7 @@ const as_layout_ops_t as_layout_kd_standard = {
     .trace_cpu = kd_trace_cpu,
 #ifdef AS_HAVE_CUDA
     .trace_gpu = as_layout_trace_gpu,
+    .validate_gpu = as_kd_validate_gpu,
 #endif
     .convert = kd_convert,
 };
@@ -184,6 +185,7 @@ const as_layout_ops_t as_layout_kd_ropes = {
     .trace_cpu = kd_ropes_trace_cpu,
 #ifdef AS_HAVE_CUDA
     .trace_gpu = as_layout_trace_gpu,
+    .validate_gpu = as_kd_ropes_validate_gpu,
 #endif
     .convert = kd_convert,
 };

@@ -8,6 +8,7 @@
  * compared). */
 #include "structure.h"
 #include "kd_layout.h"
+#include "trace_gpu.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -165,3 +166,36 @@ as_error_t as_kd_ropes_validate(const as_structure_t *s, const char *name)
     free(boxes);
     return err;
 }
+
+#ifdef AS_HAVE_CUDA
+static as_error_t kd_validate_gpu(const as_structure_t *s, const char *name, int ropes)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_KDN8), *ps = as_structure_find(s, ASF_TAG_PRIM),
+                       *ts = as_structure_find(s, ASF_TAG_TRIS);
+    if (!ns || !ps || !ts || !s->gpu)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: KDN8, PRIM or TRIS section missing", name);
+    const as_section_t *rs = as_structure_find(s, ASF_TAG_KDRP), *bs = as_structure_find(s, ASF_TAG_KDLB);
+    if (ropes && (!rs || !bs)) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: KDRP or KDLB section missing", name);
+    as_gpu_kd_expect_t e = {
+        .node_count = ns->count,
+        .prim_count = ps->count,
+        .tri_count = ts->count,
+        .ropes = ropes,
+        .rope_count = ropes ? rs->count : 0,
+        .leaf_box_count = ropes ? bs->count : 0,
+        .mesh_triangles = s->meta.triangle_count,
+        .meta_node_count = s->meta.node_count,
+        .meta_leaf_count = s->meta.leaf_count,
+        .meta_reference_count = s->meta.reference_count,
+        .meta_empty_leaf_count = s->meta.empty_leaf_count,
+        .meta_max_depth = s->meta.max_depth,
+    };
+    memcpy(e.bounds_lo, s->meta.bounds_lo, sizeof e.bounds_lo);
+    memcpy(e.bounds_hi, s->meta.bounds_hi, sizeof e.bounds_hi);
+    return as_gpu_validate_kd(s->gpu, name, &e);
+}
+
+as_error_t as_kd_validate_gpu(const as_structure_t *s, const char *name) { return kd_validate_gpu(s, name, 0); }
+
+as_error_t as_kd_ropes_validate_gpu(const as_structure_t *s, const char *name) { return kd_validate_gpu(s, name, 1); }
+#endif

@@ -74,5 +74,6 @@ const as_layout_ops_t as_layout_octree = {
     .trace_cpu = octree_trace_cpu,
 #ifdef AS_HAVE_CUDA
     .trace_gpu = as_layout_trace_gpu,
+    .validate_gpu = as_octree_validate_gpu,
 #endif
 };

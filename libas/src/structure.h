@@ -192,6 +192,7 @@ as_error_t as_bvh2_validate_counts(const as_structure_t *s, const char *name, co
 as_error_t as_bvh2_to_own_bounds(const as_structure_t *src, as_structure_t *dst);
 as_error_t as_bvh2_own_to_child_bounds(const as_structure_t *src, as_structure_t *dst);
 as_error_t as_bvh2_own_validate(const as_structure_t *s, const char *name);
+as_error_t as_bvh2_own_validate_gpu(const as_structure_t *s, const char *name);
 
 /* BIH, octree and uniform grid: builders, validators, SAH costs (from the
  * stored structure; `st` may be NULL, else its counts and histograms are
@@ -205,6 +206,10 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
 as_error_t as_bih_validate(const as_structure_t *s, const char *name);
 as_error_t as_octree_validate(const as_structure_t *s, const char *name);
 as_error_t as_grid_validate(const as_structure_t *s, const char *name);
+/* The same checks on the GPU, over s->gpu (CUDA builds). */
+as_error_t as_bih_validate_gpu(const as_structure_t *s, const char *name);
+as_error_t as_octree_validate_gpu(const as_structure_t *s, const char *name);
+as_error_t as_grid_validate_gpu(const as_structure_t *s, const char *name);
 double as_bih_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
 double as_octree_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
 double as_grid_sah_cost(const as_structure_t *s, as_structure_stats_t *st);
@@ -217,6 +222,9 @@ as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, a
 double as_kd_sah_cost(const as_structure_t *s);
 as_error_t as_kd_validate(const as_structure_t *s, const char *name);
 as_error_t as_kd_ropes_validate(const as_structure_t *s, const char *name);
+/* The same checks on the GPU, over s->gpu (CUDA builds). */
+as_error_t as_kd_validate_gpu(const as_structure_t *s, const char *name);
+as_error_t as_kd_ropes_validate_gpu(const as_structure_t *s, const char *name);
 /* Adds KDRP and KDLB to a KD-standard structure and makes it kd-ropes. */
 as_error_t as_kd_add_ropes(as_structure_t *s);
 
