@@ -94,11 +94,11 @@ static void usage(void)
            "                             one that passes; only for files and records you trust\n"
            "  -h, --help                 this help\n"
            "  -V, --version              the version\n\n"
-           "The structure is validated before a kernel reads it: a BVH2 (child bounds) on\n"
-           "the GPU right after its upload, others on the CPU first; once per fingerprint\n"
-           "with --validation-record. Times: GPU, the median\n"
-           "of the timed launches measured with device events around the kernel alone (rays\n"
-           "already on the device); CPU, wall clock of the trace.\n\n" TOOL_EXIT_CODES_HELP,
+           "The structure is validated before a kernel reads it: on the GPU right after its\n"
+           "upload, every layout (zero-copy residency: on the CPU first); on the CPU before\n"
+           "a CPU trace; once per fingerprint with --validation-record. Times: GPU, the\n"
+           "median of the timed launches measured with device events around the kernel\n"
+           "alone (rays already on the device); CPU, wall clock of the trace.\n\n" TOOL_EXIT_CODES_HELP,
            TOOL);
 }
 
