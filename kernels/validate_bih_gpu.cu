@@ -70,10 +70,10 @@ __global__ void check_nodes(const as_bih_node_t *nodes, unsigned long long node_
                 if (atomicCAS(&parent[c], -1, (int)i) != -1) gv_fail(s, NODE_TWICE, c);
         }
     }
-    gv_count(&s->count[INNER], inner);
-    gv_count(&s->count[LEAVES], leaves);
-    gv_count(&s->count[EMPTY], empty);
-    gv_count(&s->count[REFERENCES], references);
+    gv_count(s, INNER, inner);
+    gv_count(s, LEAVES, leaves);
+    gv_count(s, EMPTY, empty);
+    gv_count(s, REFERENCES, references);
 }
 
 // Every node reached from the root within AS_BIH_MAX_DEPTH levels, inner

@@ -65,8 +65,8 @@ __global__ void check_nodes(const as_bvh2_node_t *nodes, unsigned long long node
         references += count;
         gv_tri4_leaf(tris, first, count, b, clipped, owner, s);
     }
-    gv_count(&s->count[LEAVES], leaves);
-    gv_count(&s->count[REFERENCES], references);
+    gv_count(s, LEAVES, leaves);
+    gv_count(s, REFERENCES, references);
 }
 
 // Inner nodes at most AS_BVH2_MAX_DEPTH - 1 deep (the traversal stack), and

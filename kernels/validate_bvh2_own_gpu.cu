@@ -81,9 +81,9 @@ __global__ void check_nodes(const as_bvh2o_node_t *nodes, unsigned long long nod
             }
         }
     }
-    gv_count(&s->count[INNER], inner);
-    gv_count(&s->count[LEAVES], leaves);
-    gv_count(&s->count[REFERENCES], references);
+    gv_count(s, INNER, inner);
+    gv_count(s, LEAVES, leaves);
+    gv_count(s, REFERENCES, references);
 }
 
 // Inner nodes at most AS_BVH2_MAX_DEPTH - 1 deep (an inner node at depth d

@@ -17,8 +17,6 @@
 #include "bvh2_layout.h"
 #include "trace_gpu.h"
 
-#include <cooperative_groups.h>
-#include <cooperative_groups/reduce.h>
 #include <cuda_runtime.h>
 
 extern "C" as_error_t as_set_error(as_error_t code, const char *fmt, ...);
@@ -44,11 +42,16 @@ const unsigned long long GV_NO_FAILURE = ~0ull;
 
 // Device-side results: the first failure and a few counts each validator
 // gives its own meaning.
+// The counts are kept in GV_COUNT_SLOTS slots each on the device (the
+// lanes of a warp add to different addresses, so millions of additions do not
+// queue on one) and summed into count[] by gv_read.
+#define GV_COUNT_SLOTS 32
 struct gv_scratch {
     unsigned long long first_failure; // (index << 8) | check; GV_NO_FAILURE: none
     unsigned long long count[6];
     unsigned max_depth;
     unsigned pad;
+    unsigned long long slot[6][GV_COUNT_SLOTS];
 };
 
 __device__ inline unsigned long long gv_thread_index()
@@ -61,15 +64,13 @@ __device__ inline void gv_fail(gv_scratch *s, unsigned check, unsigned long long
     atomicMin(&s->first_failure, (index << 8) | check);
 }
 
-// One atomic per group of converged threads instead of one per thread:
-// counts over millions of nodes or cells would otherwise queue on one
-// address.
-__device__ inline void gv_count(unsigned long long *dst, unsigned long long v)
+// Adds v to count `which`. A plain atomic per thread, into the lane's own
+// slot: a reduction over the threads that happen to be converged here
+// (coalesced groups) is not safe after the callers' divergent loops, where
+// lanes the active mask names may not have arrived, and it lost counts.
+__device__ inline void gv_count(gv_scratch *s, int which, unsigned long long v)
 {
-    namespace cg = cooperative_groups;
-    const cg::coalesced_group g = cg::coalesced_threads();
-    v = cg::reduce(g, v, cg::plus<unsigned long long>());
-    if (g.thread_rank() == 0 && v) atomicAdd(dst, v);
+    if (v) atomicAdd(&s->slot[which][threadIdx.x % GV_COUNT_SLOTS], v);
 }
 
 __device__ inline bool gv_finite(float x) { return isfinite(x); }
@@ -260,6 +261,10 @@ inline cudaError_t gv_read(const gv_scratch *d, gv_scratch *h)
 {
     cudaError_t ce = cudaMemcpy(h, d, sizeof *h, cudaMemcpyDeviceToHost);
     if (ce == cudaSuccess) ce = cudaGetLastError();
+    for (int k = 0; k < 6; ++k) {
+        h->count[k] = 0;
+        for (int j = 0; j < GV_COUNT_SLOTS; ++j) h->count[k] += h->slot[k][j];
+    }
     return ce;
 }
 

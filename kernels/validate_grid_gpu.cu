@@ -25,7 +25,7 @@ __global__ void check_cells(const unsigned *off, unsigned long long cells, gv_sc
     if (c >= cells) return;
     const unsigned a = off[c], b = off[c + 1];
     if (b < a) gv_fail(s, OFFSET_DECREASES, c);
-    gv_count(&s->count[NONEMPTY], b > a);
+    gv_count(s, NONEMPTY, b > a);
 }
 
 // Every referenced triangle inside the grid box; one thread per PRIM entry.

@@ -119,10 +119,10 @@ __global__ void check_nodes(const as_kd_node_t *nodes, unsigned long long node_c
             }
         }
     }
-    gv_count(&s->count[INNER], inner);
-    gv_count(&s->count[LEAVES], leaves);
-    gv_count(&s->count[EMPTY], empty);
-    gv_count(&s->count[REFERENCES], references);
+    gv_count(s, INNER, inner);
+    gv_count(s, LEAVES, leaves);
+    gv_count(s, EMPTY, empty);
+    gv_count(s, REFERENCES, references);
 }
 
 // One doubling of depth, ancestor and box (the root's box intersected with

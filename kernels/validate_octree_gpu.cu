@@ -54,10 +54,10 @@ __global__ void check_nodes(const as_octree_node_t *nodes, unsigned long long no
                 if (atomicExch(&owner[j], 0u) != 0xffffffffu) gv_fail(s, PRIM_TWICE, j);
         }
     }
-    gv_count(&s->count[INNER], inner);
-    gv_count(&s->count[LEAVES], leaves);
-    gv_count(&s->count[EMPTY], empty);
-    gv_count(&s->count[REFERENCES], references);
+    gv_count(s, INNER, inner);
+    gv_count(s, LEAVES, leaves);
+    gv_count(s, EMPTY, empty);
+    gv_count(s, REFERENCES, references);
 }
 
 // Every referenced triangle inside the root cube (the traversal clips rays
