@@ -45,12 +45,18 @@ void as_gpu_release(as_gpu_resident_t *g);
 uint64_t as_gpu_free_memory(void);
 
 /* What a BVH2 child-bounds structure's sections and META must agree on. */
+/* What META says, for every GPU validator (as_gpu_meta_expect fills it). */
+typedef struct as_gpu_meta_expect {
+    uint32_t mesh_triangles;           /* source triangles */
+    float bounds_lo[3], bounds_hi[3];  /* the scene's (root's) box */
+    uint64_t node_count, leaf_count, reference_count, empty_leaf_count;
+    uint32_t max_depth;
+} as_gpu_meta_expect_t;
+
 typedef struct as_gpu_bvh2_expect {
     uint64_t node_count, tri_count;    /* entries of the uploaded BVH2 and TRI4 */
-    uint32_t mesh_triangles;           /* META: source triangles */
     int clipped_leaves;                /* SBVH: leaf boxes hold clipped parts */
-    uint64_t meta_node_count, meta_leaf_count, meta_reference_count, meta_empty_leaf_count;
-    uint32_t meta_max_depth;
+    as_gpu_meta_expect_t meta;
 } as_gpu_bvh2_expect_t;
 
 /* Validates uploaded BVH2 child-bounds sections (device[0] nodes, device[1]
@@ -68,10 +74,7 @@ typedef struct as_gpu_kd_expect {
     uint64_t node_count, prim_count, tri_count;
     int ropes;                         /* kd-ropes: check KDRP and KDLB too */
     uint64_t rope_count, leaf_box_count;
-    uint32_t mesh_triangles;
-    float bounds_lo[3], bounds_hi[3];  /* META: the root's box */
-    uint64_t meta_node_count, meta_leaf_count, meta_reference_count, meta_empty_leaf_count;
-    uint32_t meta_max_depth;
+    as_gpu_meta_expect_t meta;
 } as_gpu_kd_expect_t;
 
 /* Validates uploaded KD sections on the GPU with the checks of
@@ -83,10 +86,7 @@ typedef struct as_gpu_spatial_expect {
     uint64_t header_count;             /* octree OCTH, grid GRDH records (1) */
     uint64_t node_count;               /* BIH BIHN, octree OCTN; grid: GRDC offsets */
     uint64_t prim_count, tri_count;
-    uint32_t mesh_triangles;
-    float bounds_lo[3], bounds_hi[3];  /* META: the scene box (BIH) */
-    uint64_t meta_node_count, meta_leaf_count, meta_reference_count, meta_empty_leaf_count;
-    uint32_t meta_max_depth;
+    as_gpu_meta_expect_t meta;
 } as_gpu_spatial_expect_t;
 
 /* Validate uploaded sections on the GPU with the checks of the CPU

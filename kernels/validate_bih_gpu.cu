@@ -118,7 +118,7 @@ as_error_t report(const char *name, unsigned long long key, const as_gpu_spatial
                             "%s: node %llu is deeper than the traversal stack (%d levels) or on a cycle", name, index,
                             AS_BIH_MAX_DEPTH);
     default:
-        return gv_report_shared(name, key, e->tri_count, e->mesh_triangles);
+        return gv_report_shared(name, key, e->tri_count, e->meta.mesh_triangles);
     }
 }
 
@@ -128,19 +128,19 @@ extern "C" as_error_t as_gpu_validate_bih(const as_gpu_resident_t *g, const char
                                           const as_gpu_spatial_expect_t *e)
 {
     const unsigned long long nn = e->node_count, np = e->prim_count, nt = e->tri_count;
-    if (nt != e->mesh_triangles)
+    if (nt != e->meta.mesh_triangles)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRIS holds %llu triangles but META says the mesh has %u",
-                            name, nt, e->mesh_triangles);
+                            name, nt, e->meta.mesh_triangles);
     if (nn == 0) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: no root node", name);
     if (nn > AS_BIH_MAX_INDEX || np > AS_BIH_MAX_INDEX)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %llu nodes / %llu PRIM entries exceed the 30-bit index range",
                             name, nn, np);
     scene_box box;
     for (int k = 0; k < 3; ++k) {
-        if (!std::isfinite(e->bounds_lo[k]) || !std::isfinite(e->bounds_hi[k]) || !(e->bounds_lo[k] <= e->bounds_hi[k]))
+        if (!std::isfinite(e->meta.bounds_lo[k]) || !std::isfinite(e->meta.bounds_hi[k]) || !(e->meta.bounds_lo[k] <= e->meta.bounds_hi[k]))
             return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META scene box is not finite and ordered", name);
-        box.lo[k] = e->bounds_lo[k];
-        box.hi[k] = e->bounds_hi[k];
+        box.lo[k] = e->meta.bounds_lo[k];
+        box.hi[k] = e->meta.bounds_hi[k];
     }
     const as_bih_node_t *nodes = static_cast<const as_bih_node_t *>(g->device[0]);
     const unsigned *prim = static_cast<const unsigned *>(g->device[1]);

@@ -113,7 +113,7 @@ as_error_t report(const char *name, unsigned long long key, const as_gpu_bvh2_ex
                             "%s: node %llu is deeper than the traversal stack (%d levels) or on a cycle", name, index,
                             AS_BVH2_MAX_DEPTH);
     default:
-        return gv_report_shared(name, key, e->tri_count, e->mesh_triangles);
+        return gv_report_shared(name, key, e->tri_count, e->meta.mesh_triangles);
     }
 }
 
@@ -136,7 +136,7 @@ extern "C" as_error_t as_gpu_validate_bvh2(const as_gpu_resident_t *g, const cha
     gv_scratch *d_s = gv_new_scratch(mem);
     gv_scratch h_s;
     if (!d_s) return gv_no_memory(name, mem.error());
-    if (nt) gv_check_tri4<<<gv_blocks(nt), 256>>>(tris, nt, e->mesh_triangles, d_s);
+    if (nt) gv_check_tri4<<<gv_blocks(nt), 256>>>(tris, nt, e->meta.mesh_triangles, d_s);
     check_nodes<<<gv_blocks(nn), 256>>>(nodes, nn, tris, nt, e->clipped_leaves, parent, owner, d_s);
     // Depths only mean something once every node has at most one parent.
     cudaError_t ce = gv_read(d_s, &h_s);

@@ -334,21 +334,21 @@ inline as_error_t gv_bvh2_counts(const char *name, const char *section, unsigned
     if (references != e->tri_count)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 holds %llu triangles but the leaves reference %llu",
                             name, (unsigned long long)e->tri_count, references);
-    if (e->meta_node_count != nodes)
+    if (e->meta.node_count != nodes)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says %llu nodes but %s holds %llu", name,
-                            (unsigned long long)e->meta_node_count, section, nodes);
-    if (e->meta_leaf_count != leaves)
+                            (unsigned long long)e->meta.node_count, section, nodes);
+    if (e->meta.leaf_count != leaves)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META leaf count is %llu but the tree has %llu leaves", name,
-                            (unsigned long long)e->meta_leaf_count, leaves);
-    if (e->meta_reference_count != references || e->meta_empty_leaf_count != 0)
+                            (unsigned long long)e->meta.leaf_count, leaves);
+    if (e->meta.reference_count != references || e->meta.empty_leaf_count != 0)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE,
                             "%s: META reference count %llu and empty leaf count %llu, but the leaves hold %llu "
                             "references and none is empty",
-                            name, (unsigned long long)e->meta_reference_count,
-                            (unsigned long long)e->meta_empty_leaf_count, references);
-    if (e->meta_max_depth != max_leaf_depth)
+                            name, (unsigned long long)e->meta.reference_count,
+                            (unsigned long long)e->meta.empty_leaf_count, references);
+    if (e->meta.max_depth != max_leaf_depth)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says max depth %u but the deepest leaf is at %u", name,
-                            e->meta_max_depth, max_leaf_depth);
+                            e->meta.max_depth, max_leaf_depth);
     return AS_OK;
 }
 
@@ -361,15 +361,15 @@ inline as_error_t gv_spatial_counts(const char *name, unsigned long long inner, 
     if (refs != e->prim_count)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: the leaves hold %llu references but PRIM has %llu entries",
                             name, refs, (unsigned long long)e->prim_count);
-    if (e->meta_node_count == inner && e->meta_leaf_count == leaves && e->meta_empty_leaf_count == empty &&
-        e->meta_reference_count == refs && e->meta_max_depth == max_depth)
+    if (e->meta.node_count == inner && e->meta.leaf_count == leaves && e->meta.empty_leaf_count == empty &&
+        e->meta.reference_count == refs && e->meta.max_depth == max_depth)
         return AS_OK;
     return as_set_error(AS_ERROR_INVALID_STRUCTURE,
                         "%s: META says %llu inner nodes, %llu leaves, %llu empty, %llu references, depth %u; the tree "
                         "has %llu, %llu, %llu, %llu, %u",
-                        name, (unsigned long long)e->meta_node_count, (unsigned long long)e->meta_leaf_count,
-                        (unsigned long long)e->meta_empty_leaf_count, (unsigned long long)e->meta_reference_count,
-                        e->meta_max_depth, inner, leaves, empty, refs, max_depth);
+                        name, (unsigned long long)e->meta.node_count, (unsigned long long)e->meta.leaf_count,
+                        (unsigned long long)e->meta.empty_leaf_count, (unsigned long long)e->meta.reference_count,
+                        e->meta.max_depth, inner, leaves, empty, refs, max_depth);
 }
 
 // The source triangle of a PRIM entry, for a message.

@@ -49,7 +49,7 @@ as_error_t report(const char *name, unsigned long long key, const as_gpu_spatial
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: triangle %u (PRIM entry %llu) lies outside the grid box",
                             name, gv_prim_at(prim, index), index);
     default:
-        return gv_report_shared(name, key, e->tri_count, e->mesh_triangles);
+        return gv_report_shared(name, key, e->tri_count, e->meta.mesh_triangles);
     }
 }
 
@@ -92,9 +92,9 @@ extern "C" as_error_t as_gpu_validate_grid(const as_gpu_resident_t *g, const cha
                                            const as_gpu_spatial_expect_t *e)
 {
     const unsigned long long np = e->prim_count, nt = e->tri_count;
-    if (nt != e->mesh_triangles)
+    if (nt != e->meta.mesh_triangles)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRIS holds %llu triangles but META says the mesh has %u",
-                            name, nt, e->mesh_triangles);
+                            name, nt, e->meta.mesh_triangles);
     if (e->header_count != 1)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: GRDH holds %llu records, expected 1", name,
                             (unsigned long long)e->header_count);
@@ -129,13 +129,13 @@ extern "C" as_error_t as_gpu_validate_grid(const as_gpu_resident_t *g, const cha
     if (ce != cudaSuccess) return gv_cuda_failed(name, ce);
     if (h_s.first_failure != GV_NO_FAILURE) return report(name, h_s.first_failure, e, prim);
     const unsigned long long nonempty = h_s.count[NONEMPTY];
-    if (e->meta_leaf_count != nonempty || e->meta_empty_leaf_count != cells - nonempty ||
-        e->meta_reference_count != np || e->meta_node_count != 0)
+    if (e->meta.leaf_count != nonempty || e->meta.empty_leaf_count != cells - nonempty ||
+        e->meta.reference_count != np || e->meta.node_count != 0)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE,
                             "%s: META says %llu non-empty and %llu empty cells, %llu references, %llu nodes; the grid "
                             "has %llu, %llu, %llu, 0",
-                            name, (unsigned long long)e->meta_leaf_count, (unsigned long long)e->meta_empty_leaf_count,
-                            (unsigned long long)e->meta_reference_count, (unsigned long long)e->meta_node_count,
+                            name, (unsigned long long)e->meta.leaf_count, (unsigned long long)e->meta.empty_leaf_count,
+                            (unsigned long long)e->meta.reference_count, (unsigned long long)e->meta.node_count,
                             nonempty, cells - nonempty, np);
     return AS_OK;
 }

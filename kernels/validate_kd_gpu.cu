@@ -256,7 +256,7 @@ as_error_t report(const char *name, unsigned long long key, const as_gpu_kd_expe
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: KDLB leaf %llu: box differs from the one the tree defines",
                             name, index);
     default:
-        return gv_report_shared(name, key, e->tri_count, e->mesh_triangles);
+        return gv_report_shared(name, key, e->tri_count, e->meta.mesh_triangles);
     }
 }
 
@@ -269,11 +269,11 @@ extern "C" as_error_t as_gpu_validate_kd(const as_gpu_resident_t *g, const char 
     if (nn >= (1u << 30) || np >= UINT32_MAX)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %llu nodes / %llu PRIM entries exceed the index range", name,
                             nn, np);
-    if (nt != e->mesh_triangles)
+    if (nt != e->meta.mesh_triangles)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRIS holds %llu triangles but META says the mesh has %u",
-                            name, nt, e->mesh_triangles);
+                            name, nt, e->meta.mesh_triangles);
     for (int k = 0; k < 3; ++k)
-        if (!std::isfinite(e->bounds_lo[k]) || !std::isfinite(e->bounds_hi[k]) || !(e->bounds_lo[k] <= e->bounds_hi[k]))
+        if (!std::isfinite(e->meta.bounds_lo[k]) || !std::isfinite(e->meta.bounds_hi[k]) || !(e->meta.bounds_lo[k] <= e->meta.bounds_hi[k]))
             return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META scene box is not finite or inverted on axis %d",
                                 name, k);
     const as_kd_node_t *nodes = static_cast<const as_kd_node_t *>(g->device[0]);
@@ -281,8 +281,8 @@ extern "C" as_error_t as_gpu_validate_kd(const as_gpu_resident_t *g, const char 
     const as_tri4_t *tris = static_cast<const as_tri4_t *>(g->device[2]);
     kd_box root;
     for (int a = 0; a < 3; ++a) {
-        root.lo[a] = e->bounds_lo[a];
-        root.hi[a] = e->bounds_hi[a];
+        root.lo[a] = e->meta.bounds_lo[a];
+        root.hi[a] = e->meta.bounds_hi[a];
         root.src_lo[a] = root.src_hi[a] = -1;
     }
     gv_memory mem;
@@ -313,19 +313,19 @@ extern "C" as_error_t as_gpu_validate_kd(const as_gpu_resident_t *g, const char 
     if (ce != cudaSuccess) return gv_cuda_failed(name, ce);
     if (h_s.first_failure != GV_NO_FAILURE) return report(name, h_s.first_failure, e);
     const unsigned long long leaves = h_s.count[LEAVES], empty = h_s.count[EMPTY], refs = h_s.count[REFERENCES];
-    if (e->meta_node_count != h_s.count[INNER])
+    if (e->meta.node_count != h_s.count[INNER])
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says %llu inner nodes but the tree has %llu", name,
-                            (unsigned long long)e->meta_node_count, h_s.count[INNER]);
-    if (e->meta_leaf_count != leaves - empty || e->meta_empty_leaf_count != empty)
+                            (unsigned long long)e->meta.node_count, h_s.count[INNER]);
+    if (e->meta.leaf_count != leaves - empty || e->meta.empty_leaf_count != empty)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says %llu leaves and %llu empty ones, the tree has %llu and %llu",
-                            name, (unsigned long long)e->meta_leaf_count, (unsigned long long)e->meta_empty_leaf_count,
+                            name, (unsigned long long)e->meta.leaf_count, (unsigned long long)e->meta.empty_leaf_count,
                             leaves - empty, empty);
-    if (e->meta_reference_count != refs)
+    if (e->meta.reference_count != refs)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says %llu references, the leaves hold %llu", name,
-                            (unsigned long long)e->meta_reference_count, refs);
-    if (e->meta_max_depth != h_s.max_depth)
+                            (unsigned long long)e->meta.reference_count, refs);
+    if (e->meta.max_depth != h_s.max_depth)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: META says max depth %u, the deepest leaf is at %u", name,
-                            e->meta_max_depth, h_s.max_depth);
+                            e->meta.max_depth, h_s.max_depth);
     if (!e->ropes) return AS_OK;
     if (e->rope_count != leaves || e->leaf_box_count != leaves)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: KDRP has %llu and KDLB %llu entries, the tree has %llu leaves",

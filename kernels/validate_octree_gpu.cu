@@ -114,7 +114,7 @@ as_error_t report(const char *name, unsigned long long key, const as_gpu_spatial
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: node %llu is deeper than the traversal stack (%d levels)",
                             name, index, AS_OCTREE_MAX_DEPTH);
     default:
-        return gv_report_shared(name, key, e->tri_count, e->mesh_triangles);
+        return gv_report_shared(name, key, e->tri_count, e->meta.mesh_triangles);
     }
 }
 
@@ -124,9 +124,9 @@ extern "C" as_error_t as_gpu_validate_octree(const as_gpu_resident_t *g, const c
                                              const as_gpu_spatial_expect_t *e)
 {
     const unsigned long long nn = e->node_count, np = e->prim_count, nt = e->tri_count;
-    if (nt != e->mesh_triangles)
+    if (nt != e->meta.mesh_triangles)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRIS holds %llu triangles but META says the mesh has %u",
-                            name, nt, e->mesh_triangles);
+                            name, nt, e->meta.mesh_triangles);
     if (e->header_count != 1)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: OCTH holds %llu records, expected 1", name,
                             (unsigned long long)e->header_count);

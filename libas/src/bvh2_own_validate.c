@@ -134,17 +134,12 @@ as_error_t as_bvh2_own_validate_gpu(const as_structure_t *s, const char *name)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVHO), *ts = as_structure_find(s, ASF_TAG_TRI4);
     if (!ns || !ts || !s->gpu) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: BVHO or TRI4 section missing", name);
-    const as_gpu_bvh2_expect_t e = {
+    as_gpu_bvh2_expect_t e = {
         .node_count = ns->count,
         .tri_count = ts->count,
-        .mesh_triangles = s->meta.triangle_count,
         .clipped_leaves = s->meta.builder == AS_BUILDER_BVH_SBVH,
-        .meta_node_count = s->meta.node_count,
-        .meta_leaf_count = s->meta.leaf_count,
-        .meta_reference_count = s->meta.reference_count,
-        .meta_empty_leaf_count = s->meta.empty_leaf_count,
-        .meta_max_depth = s->meta.max_depth,
     };
+    as_gpu_meta_expect(s, &e.meta);
     return as_gpu_validate_bvh2_own(s->gpu, name, &e);
 }
 #endif

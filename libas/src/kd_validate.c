@@ -183,15 +183,8 @@ static as_error_t kd_validate_gpu(const as_structure_t *s, const char *name, int
         .ropes = ropes,
         .rope_count = ropes ? rs->count : 0,
         .leaf_box_count = ropes ? bs->count : 0,
-        .mesh_triangles = s->meta.triangle_count,
-        .meta_node_count = s->meta.node_count,
-        .meta_leaf_count = s->meta.leaf_count,
-        .meta_reference_count = s->meta.reference_count,
-        .meta_empty_leaf_count = s->meta.empty_leaf_count,
-        .meta_max_depth = s->meta.max_depth,
     };
-    memcpy(e.bounds_lo, s->meta.bounds_lo, sizeof e.bounds_lo);
-    memcpy(e.bounds_hi, s->meta.bounds_hi, sizeof e.bounds_hi);
+    as_gpu_meta_expect(s, &e.meta);
     return as_gpu_validate_kd(s->gpu, name, &e);
 }
 

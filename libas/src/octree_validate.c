@@ -113,24 +113,6 @@ done:
 #ifdef AS_HAVE_CUDA
 as_error_t as_octree_validate_gpu(const as_structure_t *s, const char *name)
 {
-    const as_section_t *hs = as_structure_find(s, ASF_TAG_OCTH), *ns = as_structure_find(s, ASF_TAG_OCTN),
-                       *ps = as_structure_find(s, ASF_TAG_PRIM), *ts = as_structure_find(s, ASF_TAG_TRIS);
-    if (!hs || !ns || !ps || !ts || !s->gpu)
-        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: OCTH, OCTN, PRIM or TRIS section missing", name);
-    as_gpu_spatial_expect_t e = {
-        .header_count = hs->count,
-        .node_count = ns->count,
-        .prim_count = ps->count,
-        .tri_count = ts->count,
-        .mesh_triangles = s->meta.triangle_count,
-        .meta_node_count = s->meta.node_count,
-        .meta_leaf_count = s->meta.leaf_count,
-        .meta_reference_count = s->meta.reference_count,
-        .meta_empty_leaf_count = s->meta.empty_leaf_count,
-        .meta_max_depth = s->meta.max_depth,
-    };
-    memcpy(e.bounds_lo, s->meta.bounds_lo, sizeof e.bounds_lo);
-    memcpy(e.bounds_hi, s->meta.bounds_hi, sizeof e.bounds_hi);
-    return as_gpu_validate_octree(s->gpu, name, &e);
+    return as_spatial_validate_gpu(s, name, ASF_TAG_OCTH, ASF_TAG_OCTN, as_gpu_validate_octree);
 }
 #endif

@@ -159,3 +159,25 @@ as_error_t as_spatial_validate_counts(const as_structure_t *s, const char *name,
                         (unsigned long long)s->meta.reference_count, s->meta.max_depth, (unsigned long long)inner,
                         (unsigned long long)leaves, (unsigned long long)empty, (unsigned long long)refs, max_depth);
 }
+
+#ifdef AS_HAVE_CUDA
+as_error_t as_spatial_validate_gpu(const as_structure_t *s, const char *name, uint32_t header_tag, uint32_t node_tag,
+                                   as_error_t (*validate)(const as_gpu_resident_t *, const char *,
+                                                          const as_gpu_spatial_expect_t *))
+{
+    const as_section_t *hs = header_tag ? as_structure_find(s, header_tag) : NULL;
+    const as_section_t *ns = as_structure_find(s, node_tag), *ps = as_structure_find(s, ASF_TAG_PRIM),
+                       *ts = as_structure_find(s, ASF_TAG_TRIS);
+    if ((header_tag && !hs) || !ns || !ps || !ts || !s->gpu)
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: a section of the %s layout is missing", name,
+                            as_structure_ops(s)->layout_name);
+    as_gpu_spatial_expect_t e = {
+        .header_count = hs ? hs->count : 0,
+        .node_count = ns->count,
+        .prim_count = ps->count,
+        .tri_count = ts->count,
+    };
+    as_gpu_meta_expect(s, &e.meta);
+    return validate(s->gpu, name, &e);
+}
+#endif

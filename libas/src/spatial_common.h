@@ -41,6 +41,14 @@ as_error_t as_spatial_validate_tris(const as_structure_t *s, const char *name, c
 
 /* That META's node, leaf, empty-leaf and reference counts and depth are the
  * tree's, as a validator counted them. */
+#ifdef AS_HAVE_CUDA
+#include "trace_gpu.h"
+/* A BIH, octree or grid's GPU validation: finds its sections (header_tag 0:
+ * none), fills what they and META say, and runs `validate` over s->gpu. */
+as_error_t as_spatial_validate_gpu(const as_structure_t *s, const char *name, uint32_t header_tag, uint32_t node_tag,
+                                   as_error_t (*validate)(const as_gpu_resident_t *, const char *,
+                                                          const as_gpu_spatial_expect_t *));
+#endif
 as_error_t as_spatial_validate_counts(const as_structure_t *s, const char *name, uint64_t inner, uint64_t leaves,
                                       uint64_t empty, uint64_t refs, uint32_t max_depth);
 

@@ -171,6 +171,11 @@ static inline double as_half_area6(float lox, float hix, float loy, float hiy, f
     return dx * dy + dy * dz + dz * dx;
 }
 as_error_t as_bvh2_validate(const as_structure_t *s, const char *name);
+#ifdef AS_HAVE_CUDA
+struct as_gpu_meta_expect;
+/* What META says, as every GPU validator compares it (trace.c). */
+void as_gpu_meta_expect(const as_structure_t *s, struct as_gpu_meta_expect *meta);
+#endif
 /* The same checks on the GPU, over s->gpu (CUDA builds). */
 as_error_t as_bvh2_validate_gpu(const as_structure_t *s, const char *name);
 /* Parts of the BVH2 validation shared by both BVH layouts (bvh2_validate.c):

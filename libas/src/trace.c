@@ -89,6 +89,18 @@ static as_error_t upload(const as_structure_t *s, const as_trace_args_t *args)
 #endif
 
 #ifdef AS_HAVE_CUDA
+void as_gpu_meta_expect(const as_structure_t *s, as_gpu_meta_expect_t *m)
+{
+    m->mesh_triangles = s->meta.triangle_count;
+    memcpy(m->bounds_lo, s->meta.bounds_lo, sizeof m->bounds_lo);
+    memcpy(m->bounds_hi, s->meta.bounds_hi, sizeof m->bounds_hi);
+    m->node_count = s->meta.node_count;
+    m->leaf_count = s->meta.leaf_count;
+    m->reference_count = s->meta.reference_count;
+    m->empty_leaf_count = s->meta.empty_leaf_count;
+    m->max_depth = s->meta.max_depth;
+}
+
 as_error_t as_layout_trace_gpu(const as_structure_t *s, const as_ray_t *rays, size_t count, as_hit_t *hits,
                                const as_gpu_launch_t *launch, as_trace_timing_t *timing)
 {
