@@ -12,3 +12,7 @@ function(as_add_stiff name structure builder layout)
   set_tests_properties(gpu_stiff_${name} PROPERTIES SKIP_RETURN_CODE 77 LABELS "gpu;stiff")
 endfunction()
 as_add_stiff(bvh_sah bvh sah bvh2-child-bounds)
+# The generator itself (as_stiff_case_generate): defaults, refusals, the same
+# bytes for the same seed, other meshes for another.
+add_test(NAME stiff_generator COMMAND test_stiff --generator)
+set_tests_properties(stiff_generator PROPERTIES LABELS stiff)

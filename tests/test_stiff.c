@@ -2,10 +2,14 @@
  * correct outcome and every structure variant must meet it exactly.
  *
  *   test_stiff [--gpu] STRUCTURE BUILDER LAYOUT [CASE]
+ *   test_stiff --generator
  *
+ * The meshes and rays come from the library's generator
+ * (as_stiff_case_generate), with its default seed; --generator tests the
+ * generator itself (defaults, refusals, same seed same bytes).
  * With --gpu the rays are traced by the CUDA kernels (exit 77, skipped,
  * without a usable GPU); builds and the reference stay on the CPU.
- * Cases (fixed seeds): watertight, moller_leaks, seam, signed_zero, grazing, range,
+ * Cases: watertight, moller_leaks, seam, signed_zero, grazing, range,
  * degenerate, flat, duplicates, planar, surface, bad_rays. */
 #include "reference.h"
 #include "test_util.h"
@@ -21,44 +25,42 @@ static as_device_t device = AS_DEVICE_CPU;
 
 /* ---- helpers -------------------------------------------------------------- */
 
-typedef struct mesh_builder {
-    float *p;
-    uint32_t *ix;
-    uint32_t nv, nt, cap_v, cap_t;
-} mesh_builder;
-
-static uint32_t mb_vertex(mesh_builder *m, double x, double y, double z)
+/* The case from the library's generator (as_stiff_case_generate), which
+ * holds the suite's meshes and rays; `args` may be NULL. */
+static int generate(as_stiff_case_t kind, const as_stiff_args_t *args, as_stiff_case_data_t *c)
 {
-    if (m->nv == m->cap_v) {
-        m->cap_v = m->cap_v ? 2 * m->cap_v : 1024;
-        m->p = realloc(m->p, sizeof(float) * 3 * m->cap_v);
-    }
-    m->p[3 * m->nv] = (float)x;
-    m->p[3 * m->nv + 1] = (float)y;
-    m->p[3 * m->nv + 2] = (float)z;
-    return m->nv++;
+    const as_error_t e = as_stiff_case_generate(kind, args, c);
+    if (e != AS_OK) fprintf(stderr, "  %s: generation failed: %s\n", as_stiff_case_name(kind), as_get_error_message());
+    CHECK_EQ_INT(e, AS_OK);
+    return e == AS_OK;
 }
 
-static void mb_triangle(mesh_builder *m, uint32_t a, uint32_t b, uint32_t c)
+/* Rays [from, to) whose hit breaks the outcome the generator states, the
+ * reference part aside (against_reference checks that). */
+static size_t outcome_failures(const as_stiff_case_data_t *c, size_t from, size_t to, const as_hit_t *hits)
 {
-    if (m->nt == m->cap_t) {
-        m->cap_t = m->cap_t ? 2 * m->cap_t : 1024;
-        m->ix = realloc(m->ix, sizeof(uint32_t) * 3 * m->cap_t);
+    size_t bad = 0;
+    for (size_t i = from; i < to; ++i) {
+        const as_stiff_outcome_t *o = &c->outcomes[i];
+        const as_hit_t *h = &hits[i - from];
+        bool listed = false;
+        for (uint32_t k = 0; k < o->count; ++k) listed |= h->prim == c->prims[o->first + k];
+        bool ok = true;
+        switch (o->expect) {
+        case AS_STIFF_EXPECT_HIT: ok = h->prim != AS_NO_HIT; break;
+        case AS_STIFF_EXPECT_MISS: ok = h->prim == AS_NO_HIT && isinf(h->t); break;
+        case AS_STIFF_EXPECT_PRIM: ok = listed; break;
+        case AS_STIFF_EXPECT_NOT_PRIM: ok = !listed; break;
+        default: break;
+        }
+        if (o->same_as != AS_STIFF_NO_RAY && o->same_as >= from)
+            ok = ok && memcmp(h, &hits[o->same_as - from], sizeof *h) == 0;
+        if (!ok && bad < 3)
+            fprintf(stderr, "  %s %s ray %zu: outcome %u not met: prim %u t %.9g\n", variant_name,
+                    as_stiff_case_name(c->kind), i, o->expect, h->prim, (double)h->t);
+        bad += !ok;
     }
-    m->ix[3 * m->nt] = a;
-    m->ix[3 * m->nt + 1] = b;
-    m->ix[3 * m->nt + 2] = c;
-    ++m->nt;
-}
-
-static as_mesh_t *mb_finish(mesh_builder *m)
-{
-    as_mesh_t *mesh = as_mesh_create(m->nv, m->p, m->nt, m->ix);
-    if (!mesh) fprintf(stderr, "  mesh rejected: %s\n", as_get_error_message());
-    free(m->p);
-    free(m->ix);
-    memset(m, 0, sizeof *m);
-    return mesh;
+    return bad;
 }
 
 static as_structure_t *build(const as_mesh_t *m, const char *what)
@@ -114,106 +116,23 @@ static size_t against_reference(const char *what, const as_mesh_t *m, const as_s
     return bad;
 }
 
-static void ray_set(as_ray_t *r, double ox, double oy, double oz, double dx, double dy, double dz, float tmax)
-{
-    r->org[0] = (float)ox; r->org[1] = (float)oy; r->org[2] = (float)oz;
-    r->dir[0] = (float)dx; r->dir[1] = (float)dy; r->dir[2] = (float)dz;
-    r->tmin = 0.0f;
-    r->tmax = tmax;
-}
-
 /* ---- the cases ------------------------------------------------------------ */
 
-/* A closed, indexed mesh at `offset` (kind 0: a lattice cube of shared
- * vertices, kind 1: a sphere with pole fans), sized so the float spacing
- * there is below 1/100 of an edge, and rays from inside and outside aimed
- * exactly at every vertex and at points of every edge; returns how many of
- * them miss (leak through the surface). */
-static size_t closed_mesh_leaks(int kind, double offset)
+/* A closed, indexed mesh at `offset` (a lattice cube or a sphere with pole
+ * fans), sized so the float spacing there is below 1/100 of an edge, and
+ * rays from inside and outside aimed exactly at every vertex and at points
+ * of every edge; returns how many of them miss (leak through the surface). */
+static size_t closed_mesh_leaks(as_stiff_case_t kind, double offset)
 {
-    const double edge = offset == 0.0 ? 1.0 : offset == 1e6 ? 16.0 : 128.0;
-    mesh_builder mb = {0};
-    double centre[3];
-    if (kind == 0) {
-        /* A lattice cube, n x n quads per face, shared vertices. */
-        const int n = 6;
-        uint32_t *id = malloc(sizeof(uint32_t) * (n + 1) * (n + 1) * (n + 1));
-        for (int i = 0; i <= n; ++i)
-            for (int j = 0; j <= n; ++j)
-                for (int k = 0; k <= n; ++k) {
-                    const int on = !i || !j || !k || i == n || j == n || k == n;
-                    id[(i * (n + 1) + j) * (n + 1) + k] =
-                        on ? mb_vertex(&mb, offset + i * edge, offset + j * edge, offset + k * edge) : 0;
-                }
-        for (int f = 0; f < 6; ++f) {
-            const int axis = f / 2, fixed = (f % 2) ? n : 0;
-            for (int a = 0; a < n; ++a)
-                for (int b = 0; b < n; ++b) {
-                    uint32_t v[4];
-                    const int uv[4][2] = {{a, b}, {a + 1, b}, {a + 1, b + 1}, {a, b + 1}};
-                    for (int c = 0; c < 4; ++c) {
-                        int q[3];
-                        q[axis] = fixed;
-                        q[(axis + 1) % 3] = uv[c][0];
-                        q[(axis + 2) % 3] = uv[c][1];
-                        v[c] = id[(q[0] * (n + 1) + q[1]) * (n + 1) + q[2]];
-                    }
-                    mb_triangle(&mb, v[0], v[1], v[2]);
-                    mb_triangle(&mb, v[0], v[2], v[3]);
-                }
-        }
-        free(id);
-        for (int k = 0; k < 3; ++k) centre[k] = offset + 0.5 * n * edge;
-    } else {
-        /* A latitude-longitude sphere with pole fans. */
-        const int rings = 12, segs = 24;
-        const double rad = 4.0 * edge;
-        for (int k = 0; k < 3; ++k) centre[k] = offset + rad;
-        const uint32_t top = mb_vertex(&mb, centre[0], centre[1], centre[2] + rad);
-        const uint32_t bot = mb_vertex(&mb, centre[0], centre[1], centre[2] - rad);
-        const uint32_t first = mb.nv;
-        for (int r = 1; r < rings; ++r)
-            for (int sgm = 0; sgm < segs; ++sgm) {
-                const double th = 3.14159265358979 * r / rings, ph = 6.28318530717959 * sgm / segs;
-                mb_vertex(&mb, centre[0] + rad * sin(th) * cos(ph), centre[1] + rad * sin(th) * sin(ph),
-                          centre[2] + rad * cos(th));
-            }
-#define RV(r, sgm) (first + (uint32_t)(((r) - 1) * segs + ((sgm) % segs)))
-        for (int sgm = 0; sgm < segs; ++sgm) {
-            mb_triangle(&mb, top, RV(1, sgm), RV(1, sgm + 1));
-            mb_triangle(&mb, bot, RV(rings - 1, sgm + 1), RV(rings - 1, sgm));
-        }
-        for (int r = 1; r + 1 < rings; ++r)
-            for (int sgm = 0; sgm < segs; ++sgm) {
-                mb_triangle(&mb, RV(r, sgm), RV(r + 1, sgm), RV(r + 1, sgm + 1));
-                mb_triangle(&mb, RV(r, sgm), RV(r + 1, sgm + 1), RV(r, sgm + 1));
-            }
-#undef RV
-    }
-    as_mesh_t *m = mb_finish(&mb);
-    CHECK(m != NULL);
-    if (!m) return 0;
-    as_structure_t *s = build(m, "watertight");
-    if (!s) { as_mesh_release(m); return 0; }
-    as_mesh_info_t info;
-    as_mesh_get_info(m, &info);
-    const float *p = as_mesh_positions(m);
-    const uint32_t *ix = as_mesh_indices(m);
-    as_ray_t *rays = malloc(sizeof *rays * 20 * info.triangle_count);
-    size_t n = 0;
-    const float c[3] = {(float)centre[0], (float)centre[1], (float)centre[2]};
-    for (uint32_t t = 0; t < info.triangle_count; ++t)
-        for (int e = 0; e < 3; ++e)
-            for (int w = 0; w < 4; ++w) {
-                if (w == 0 && e) continue;
-                const float *a = p + 3 * ix[3 * t + e], *b = p + 3 * ix[3 * t + (e + 1) % 3];
-                float q[3];
-                for (int k = 0; k < 3; ++k) q[k] = a[k] + 0.25f * w * (b[k] - a[k]);
-                ray_set(&rays[n++], c[0], c[1], c[2], q[0] - c[0], q[1] - c[1], q[2] - c[2], INFINITY);
-                ray_set(&rays[n++], c[0] + 3.0f * (q[0] - c[0]), c[1] + 3.0f * (q[1] - c[1]),
-                        c[2] + 3.0f * (q[2] - c[2]), -3.0f * (q[0] - c[0]), -3.0f * (q[1] - c[1]),
-                        -3.0f * (q[2] - c[2]), 1.0f);
-            }
+    as_stiff_args_t args;
+    as_stiff_args_default(&args);
+    args.offset = offset;
+    as_stiff_case_data_t c;
+    if (!generate(kind, &args, &c)) return 0;
+    as_structure_t *s = build(c.mesh, "watertight");
+    if (!s) { as_stiff_case_free(&c); return 0; }
+    const as_ray_t *rays = c.rays;
+    const size_t n = c.ray_count;
     as_hit_t *hits = trace(s, rays, n, 0, NULL);
     size_t leaks = 0;
     for (size_t i = 0; i < n; ++i) {
@@ -225,12 +144,13 @@ static size_t closed_mesh_leaks(int kind, double offset)
         leaks += hits[i].prim == AS_NO_HIT;
     }
     fprintf(stderr, "  %s %s at %g: %zu rays at vertices and edges, %zu leaks%s\n", variant_name,
-            kind ? "sphere" : "lattice cube", offset, n, leaks,
+            kind == AS_STIFF_WATERTIGHT_SPHERE ? "sphere" : "lattice cube", offset, n, leaks,
             intersector == AS_INTERSECTOR_MOLLER_TRUMBORE ? " (Moller-Trumbore)" : "");
+    /* The generator's outcome (every ray hits) is this test's. */
+    if (intersector != AS_INTERSECTOR_MOLLER_TRUMBORE) CHECK_EQ_U64(outcome_failures(&c, 0, n, hits), leaks);
     free(hits);
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
     return leaks;
 }
 
@@ -239,7 +159,8 @@ static void watertight_meshes_have_zero_leaks_far_from_the_origin(void)
 {
     const double offsets[] = {0.0, 1e6, 1e7};
     for (int o = 0; o < 3; ++o)
-        for (int kind = 0; kind < 2; ++kind) CHECK_EQ_U64(closed_mesh_leaks(kind, offsets[o]), 0);
+        for (int kind = 0; kind < 2; ++kind)
+            CHECK_EQ_U64(closed_mesh_leaks(kind ? AS_STIFF_WATERTIGHT_SPHERE : AS_STIFF_WATERTIGHT_CUBE, offsets[o]), 0);
 }
 
 /* The classic Moller-Trumbore test decides each triangle alone, so rays
@@ -252,7 +173,8 @@ static void moller_trumbore_leaks_where_the_watertight_test_does_not(void)
     size_t leaks = 0;
     intersector = AS_INTERSECTOR_MOLLER_TRUMBORE;
     for (int o = 0; o < 3; ++o)
-        for (int kind = 0; kind < 2; ++kind) leaks += closed_mesh_leaks(kind, offsets[o]);
+        for (int kind = 0; kind < 2; ++kind)
+            leaks += closed_mesh_leaks(kind ? AS_STIFF_WATERTIGHT_SPHERE : AS_STIFF_WATERTIGHT_CUBE, offsets[o]);
     intersector = AS_INTERSECTOR_WATERTIGHT;
     fprintf(stderr, "  %s Moller-Trumbore: %zu leaks in all\n", variant_name, leaks);
     CHECK(leaks > 0);
@@ -262,49 +184,21 @@ static void moller_trumbore_leaks_where_the_watertight_test_does_not(void)
  * from both sides and slanted: each hits one of the two. */
 static void quad_seam_rays_hit_one_of_the_two(void)
 {
-    mesh_builder mb = {0};
-    const uint32_t a = mb_vertex(&mb, 0, 0, 0), b = mb_vertex(&mb, 1, 0, 0), c = mb_vertex(&mb, 1, 1, 0),
-                   d = mb_vertex(&mb, 0, 1, 0);
-    mb_triangle(&mb, a, b, c);
-    mb_triangle(&mb, a, c, d);
-    as_mesh_t *m = mb_finish(&mb);
-    as_structure_t *s = build(m, "seam");
-    if (!s) { as_mesh_release(m); return; }
-    const size_t n = 4000;
-    as_ray_t *rays = malloc(sizeof *rays * n);
-    uint64_t st = 5;
-    for (size_t i = 0; i < n; ++i) {
-        const float u = (float)ref_rand01(&st); /* a point of the diagonal x = y */
-        const double sx = ref_rand01(&st) - 0.5, sy = ref_rand01(&st) - 0.5, sz = (i & 1) ? 1.0 : -1.0;
-        ray_set(&rays[i], u + sx, u + sy, sz, -sx, -sy, -sz, INFINITY);
-    }
-    as_hit_t *hits = trace(s, rays, n, 0, NULL);
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_QUAD_SEAM, NULL, &c)) return;
+    as_structure_t *s = build(c.mesh, "seam");
+    if (!s) { as_stiff_case_free(&c); return; }
+    const size_t n = c.ray_count;
+    as_hit_t *hits = trace(s, c.rays, n, 0, NULL);
     size_t misses = 0;
     for (size_t i = 0; i < n; ++i) misses += hits[i].prim == AS_NO_HIT;
     fprintf(stderr, "  %s seam: %zu rays through the shared diagonal, %zu misses\n", variant_name, n, misses);
     CHECK_EQ_U64(misses, 0);
-    CHECK_EQ_U64(against_reference("seam", m, s, rays, n), 0);
+    CHECK_EQ_U64(outcome_failures(&c, 0, n, hits), 0);
+    CHECK_EQ_U64(against_reference("seam", c.mesh, s, c.rays, n), 0);
     free(hits);
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
-}
-
-static as_mesh_t *random_soup(uint64_t seed, uint32_t tris, double size, double scale_lo, double scale_hi)
-{
-    mesh_builder mb = {0};
-    uint64_t st = seed;
-    for (uint32_t t = 0; t < tris; ++t) {
-        /* Log-uniform sizes between scale_lo and scale_hi. */
-        const double s = size * exp(log(scale_lo) + ref_rand01(&st) * (log(scale_hi) - log(scale_lo)));
-        const double c[3] = {ref_rand01(&st), ref_rand01(&st), ref_rand01(&st)};
-        uint32_t v[3];
-        for (int k = 0; k < 3; ++k)
-            v[k] = mb_vertex(&mb, c[0] + s * (ref_rand01(&st) - 0.5), c[1] + s * (ref_rand01(&st) - 0.5),
-                             c[2] + s * (ref_rand01(&st) - 0.5));
-        mb_triangle(&mb, v[0], v[1], v[2]);
-    }
-    return mb_finish(&mb);
+    as_stiff_case_free(&c);
 }
 
 /* Axis-parallel directions with +0 and -0 in the other components, origins on
@@ -312,29 +206,12 @@ static as_mesh_t *random_soup(uint64_t seed, uint32_t tris, double size, double 
  * identical results, no NaN, agreement with the reference. */
 static void signed_zero_directions_give_identical_results(void)
 {
-    as_mesh_t *m = random_soup(42, 2000, 0.1, 1, 1);
-    as_structure_t *s = build(m, "signed zero");
-    if (!s) { as_mesh_release(m); return; }
-    const float *p = as_mesh_positions(m);
-    const size_t base = 1500;
-    as_ray_t *rays = malloc(sizeof *rays * base * 6 * 4);
-    size_t n = 0;
-    uint64_t st = 8;
-    for (size_t i = 0; i < base; ++i) {
-        const uint32_t v = (uint32_t)(ref_rand_u64(&st) % 6000);
-        for (int axis = 0; axis < 3; ++axis)
-            for (int sign = 0; sign < 2; ++sign)
-                for (int z = 0; z < 4; ++z) {
-                    as_ray_t *r = &rays[n++];
-                    for (int k = 0; k < 3; ++k) {
-                        r->org[k] = k == axis ? (sign ? 1.5f : -0.5f) : p[3 * v + k];
-                        r->dir[k] = k == axis ? (sign ? -1.0f : 1.0f) : ((z >> (k == (axis + 1) % 3)) & 1 ? -0.0f : 0.0f);
-                    }
-                    r->tmin = 0.0f;
-                    r->tmax = INFINITY;
-                }
-    }
-    as_hit_t *hits = trace(s, rays, n, 0, NULL);
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_SIGNED_ZERO, NULL, &c)) return;
+    as_structure_t *s = build(c.mesh, "signed zero");
+    if (!s) { as_stiff_case_free(&c); return; }
+    const size_t n = c.ray_count;
+    as_hit_t *hits = trace(s, c.rays, n, 0, NULL);
     size_t differ = 0, nan = 0;
     for (size_t i = 0; i < n; i += 4)
         for (int z = 1; z < 4; ++z) differ += memcmp(&hits[i], &hits[i + z], sizeof *hits) != 0;
@@ -342,11 +219,11 @@ static void signed_zero_directions_give_identical_results(void)
     fprintf(stderr, "  %s signed zero: %zu rays, %zu differ between +0 and -0, %zu NaN\n", variant_name, n, differ, nan);
     CHECK_EQ_U64(differ, 0);
     CHECK_EQ_U64(nan, 0);
-    CHECK_EQ_U64(against_reference("signed zero", m, s, rays, n), 0);
+    CHECK_EQ_U64(outcome_failures(&c, 0, n, hits), 0);
+    CHECK_EQ_U64(against_reference("signed zero", c.mesh, s, c.rays, n), 0);
     free(hits);
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
 }
 
 /* A large tessellated plane (z = 0), rays at 1e-1 down to 1e-7 radians and
@@ -354,49 +231,26 @@ static void signed_zero_directions_give_identical_results(void)
  * every triangle edge-on: the documented answer is a miss. */
 static void grazing_rays_match_the_reference_and_in_plane_rays_miss(void)
 {
-    mesh_builder mb = {0};
-    const int n = 40;
-    for (int i = 0; i <= n; ++i)
-        for (int j = 0; j <= n; ++j) mb_vertex(&mb, i * 25.0, j * 25.0, 0.0);
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            const uint32_t v00 = (uint32_t)(i * (n + 1) + j), v10 = v00 + (n + 1), v01 = v00 + 1, v11 = v10 + 1;
-            mb_triangle(&mb, v00, v10, v11);
-            mb_triangle(&mb, v00, v11, v01);
-        }
-    as_mesh_t *m = mb_finish(&mb);
-    as_structure_t *s = build(m, "grazing");
-    if (!s) { as_mesh_release(m); return; }
-    const size_t per = 1000;
-    const double angles[] = {1e-1, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7};
-    as_ray_t *rays = malloc(sizeof *rays * per * 8);
-    size_t k = 0;
-    uint64_t st = 9;
-    for (int a = 0; a < 7; ++a)
-        for (size_t i = 0; i < per; ++i) {
-            const double phi = 6.28318530717959 * ref_rand01(&st), x = 100 + 800 * ref_rand01(&st),
-                         y = 100 + 800 * ref_rand01(&st);
-            const double dx = cos(phi) * cos(angles[a]), dy = sin(phi) * cos(angles[a]), dz = -sin(angles[a]);
-            /* Start above the plane so the ray reaches it after 50 units. */
-            ray_set(&rays[k++], x - 50 * dx, y - 50 * dy, -50 * dz, dx, dy, dz, INFINITY);
-        }
-    const size_t slanted = k;
-    for (size_t i = 0; i < per; ++i) {
-        const double phi = 6.28318530717959 * ref_rand01(&st);
-        ray_set(&rays[k++], 100 + 800 * ref_rand01(&st), 100 + 800 * ref_rand01(&st), 0.0, cos(phi), sin(phi), 0.0,
-                INFINITY);
-    }
-    CHECK_EQ_U64(against_reference("grazing", m, s, rays, slanted), 0);
-    as_hit_t *hits = trace(s, rays + slanted, k - slanted, 0, NULL);
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_GRAZING, NULL, &c)) return;
+    as_structure_t *s = build(c.mesh, "grazing");
+    if (!s) { as_stiff_case_free(&c); return; }
+    /* The slanted rays first, then the in-plane ones, which must miss. */
+    size_t slanted = 0;
+    while (slanted < c.ray_count && c.outcomes[slanted].expect == AS_STIFF_EXPECT_REFERENCE) ++slanted;
+    const size_t k = c.ray_count;
+    CHECK_EQ_U64(slanted, 7 * (k - slanted));
+    CHECK_EQ_U64(against_reference("grazing", c.mesh, s, c.rays, slanted), 0);
+    as_hit_t *hits = trace(s, c.rays + slanted, k - slanted, 0, NULL);
     size_t in_plane_hits = 0;
     for (size_t i = 0; i < k - slanted; ++i) in_plane_hits += hits[i].prim != AS_NO_HIT;
     fprintf(stderr, "  %s grazing: %zu in-plane rays, %zu hits (documented answer: none)\n", variant_name, k - slanted,
             in_plane_hits);
     CHECK_EQ_U64(in_plane_hits, 0);
+    CHECK_EQ_U64(outcome_failures(&c, slanted, k, hits), 0);
     free(hits);
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
 }
 
 /* Triangles from 1e-6 to 1e6 in size side by side. The float test cancels
@@ -405,112 +259,72 @@ static void grazing_rays_match_the_reference_and_in_plane_rays_miss(void)
  * intersector must match the reference exactly. */
 static void dynamic_range_matches_the_reference(void)
 {
-    as_mesh_t *m = random_soup(77, 3000, 1.0, 1e-6, 1e6);
-    as_structure_t *s = build(m, "dynamic range");
-    if (!s) { as_mesh_release(m); return; }
-    const size_t n = 20000;
-    as_ray_t *rays = malloc(sizeof *rays * n);
-    uint64_t st = 10;
-    /* Half the rays aim at tiny triangles' centroids. */
-    const float *p = as_mesh_positions(m);
-    for (size_t i = 0; i < n; ++i) {
-        float d[3];
-        ref_random_direction(&st, d);
-        if (i & 1) {
-            const uint32_t t = (uint32_t)(ref_rand_u64(&st) % 3000);
-            double c[3];
-            for (int k = 0; k < 3; ++k) c[k] = (p[9 * t + k] + p[9 * t + 3 + k] + p[9 * t + 6 + k]) / 3.0;
-            ray_set(&rays[i], c[0] - d[0], c[1] - d[1], c[2] - d[2], d[0], d[1], d[2], INFINITY);
-        } else {
-            ray_set(&rays[i], ref_rand01(&st), ref_rand01(&st), ref_rand01(&st), d[0], d[1], d[2], INFINITY);
-        }
-    }
-    const size_t float_bad = against_reference("dynamic range, float test", m, s, rays, n);
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_DYNAMIC_RANGE, NULL, &c)) return;
+    CHECK_EQ_INT(c.intersector, AS_INTERSECTOR_WATERTIGHT_DOUBLE);
+    as_structure_t *s = build(c.mesh, "dynamic range");
+    if (!s) { as_stiff_case_free(&c); return; }
+    const size_t n = c.ray_count;
+    const size_t float_bad = against_reference("dynamic range, float test", c.mesh, s, c.rays, n);
     fprintf(stderr, "  %s dynamic range: the float test disagrees on %zu of %zu rays (%.0f ppm)\n", variant_name,
             float_bad, n, 1e6 * (double)float_bad / (double)n);
     intersector = AS_INTERSECTOR_WATERTIGHT_DOUBLE;
-    CHECK_EQ_U64(against_reference("dynamic range, double test", m, s, rays, n), 0);
+    CHECK_EQ_U64(against_reference("dynamic range, double test", c.mesh, s, c.rays, n), 0);
     intersector = AS_INTERSECTOR_WATERTIGHT;
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
 }
 
 /* Repeated indices, collinear vertices and needles of aspect 1e7 beside
  * ordinary triangles: builds finish, zero-area triangles are never hit. */
 static void degenerate_triangles_are_never_hit(void)
 {
-    mesh_builder mb = {0};
-    uint64_t st = 11;
-    uint32_t zero_area = 0;
-    for (int i = 0; i < 3000; ++i) {
-        const double c[3] = {ref_rand01(&st), ref_rand01(&st), ref_rand01(&st)};
-        const uint32_t a = mb_vertex(&mb, c[0], c[1], c[2]);
-        const uint32_t b = mb_vertex(&mb, c[0] + 0.05, c[1], c[2]);
-        switch (i % 4) {
-        case 0: mb_triangle(&mb, a, a, b); ++zero_area; break;                             /* repeated index */
-        case 1: mb_triangle(&mb, a, b, mb_vertex(&mb, c[0] + 0.1, c[1], c[2])); ++zero_area; break; /* collinear */
-        case 2: mb_triangle(&mb, a, b, mb_vertex(&mb, c[0], c[1] + 0.05e-7, c[2])); break; /* needle 1e7 */
-        default: mb_triangle(&mb, a, b, mb_vertex(&mb, c[0], c[1] + 0.05, c[2] + 0.01)); break;
-        }
-    }
-    as_mesh_t *m = mb_finish(&mb);
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_DEGENERATE, NULL, &c)) return;
+    const as_mesh_t *m = c.mesh;
     as_mesh_info_t info;
     as_mesh_get_info(m, &info);
-    CHECK(info.degenerate_count >= zero_area);
+    /* A repeated index or collinear corners: half the 3,000 triangles. */
+    CHECK(info.degenerate_count >= 1500);
     as_structure_t *s = build(m, "degenerate");
-    if (!s) { as_mesh_release(m); return; }
-    const size_t n = 20000;
-    as_ray_t *rays = malloc(sizeof *rays * n);
-    ref_make_scene_rays(m, n, 12, rays);
-    as_hit_t *hits = trace(s, rays, n, 0, NULL);
+    if (!s) { as_stiff_case_free(&c); return; }
+    const size_t n = c.ray_count;
+    as_hit_t *hits = trace(s, c.rays, n, 0, NULL);
     size_t degenerate_hits = 0;
     for (size_t i = 0; i < n; ++i)
         degenerate_hits += hits[i].prim != AS_NO_HIT && as_mesh_triangle_is_degenerate(m, hits[i].prim);
     fprintf(stderr, "  %s degenerate: %u zero-area triangles, %zu hits on them\n", variant_name, info.degenerate_count,
             degenerate_hits);
     CHECK_EQ_U64(degenerate_hits, 0);
-    CHECK_EQ_U64(against_reference("degenerate", m, s, rays, n), 0);
+    CHECK_EQ_U64(outcome_failures(&c, 0, n, hits), 0);
+    CHECK_EQ_U64(against_reference("degenerate", m, s, c.rays, n), 0);
     free(hits);
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
 }
 
 /* Every triangle in the plane y = 0.5 (a zero-thickness box): builds,
  * and rays from both sides hit. */
 static void flat_scene_is_hit_from_both_sides(void)
 {
-    mesh_builder mb = {0};
-    uint64_t st = 13;
-    for (int i = 0; i < 2000; ++i) {
-        const double x = ref_rand01(&st), z = ref_rand01(&st);
-        mb_triangle(&mb, mb_vertex(&mb, x, 0.5, z), mb_vertex(&mb, x + 0.03, 0.5, z), mb_vertex(&mb, x, 0.5, z + 0.03));
-    }
-    as_mesh_t *m = mb_finish(&mb);
-    as_structure_t *s = build(m, "flat");
-    if (!s) { as_mesh_release(m); return; }
-    const size_t n = 10000;
-    as_ray_t *rays = malloc(sizeof *rays * n);
-    for (size_t i = 0; i < n; ++i) {
-        const double side = (i & 1) ? 1.0 : -1.0;
-        ray_set(&rays[i], ref_rand01(&st), 0.5 + side, ref_rand01(&st), 0.1 * (ref_rand01(&st) - 0.5), -side,
-                0.1 * (ref_rand01(&st) - 0.5), INFINITY);
-    }
-    as_hit_t *hits = trace(s, rays, n, 0, NULL);
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_FLAT, NULL, &c)) return;
+    as_structure_t *s = build(c.mesh, "flat");
+    if (!s) { as_stiff_case_free(&c); return; }
+    const size_t n = c.ray_count;
+    as_hit_t *hits = trace(s, c.rays, n, 0, NULL);
     size_t hit_above = 0, hit_below = 0;
     for (size_t i = 0; i < n; ++i)
         if (hits[i].prim != AS_NO_HIT) {
-            if (i & 1) ++hit_above;
+            if (c.rays[i].org[1] > 0.5f) ++hit_above;
             else ++hit_below;
         }
     fprintf(stderr, "  %s flat: %zu hits from above, %zu from below\n", variant_name, hit_above, hit_below);
     CHECK(hit_above > 0 && hit_below > 0);
-    CHECK_EQ_U64(against_reference("flat", m, s, rays, n), 0);
+    CHECK_EQ_U64(against_reference("flat", c.mesh, s, c.rays, n), 0);
     free(hits);
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
 }
 
 /* 2 to 10,000 copies of one triangle, alone and inside a mesh: the depth
@@ -520,32 +334,27 @@ static void duplicates_keep_depth_and_report_the_lowest_copy(void)
 {
     const uint32_t counts[] = {2, 10, 100, 10000};
     for (int inside = 0; inside < 2; ++inside)
-        for (int c = 0; c < 4; ++c) {
-            mesh_builder mb = {0};
-            uint64_t st = 14;
-            uint32_t first_copy = 0;
-            if (inside)
-                for (int i = 0; i < 500; ++i) {
-                    const double x = ref_rand01(&st) * 4, y = ref_rand01(&st) * 4, z = 1 + ref_rand01(&st);
-                    mb_triangle(&mb, mb_vertex(&mb, x, y, z), mb_vertex(&mb, x + 0.1, y, z), mb_vertex(&mb, x, y + 0.1, z));
-                }
-            first_copy = mb.nt;
-            const uint32_t a = mb_vertex(&mb, 0, 0, 0), b = mb_vertex(&mb, 1, 0, 0), d = mb_vertex(&mb, 0, 1, 0);
-            for (uint32_t k = 0; k < counts[c]; ++k) mb_triangle(&mb, a, b, d);
-            as_mesh_t *m = mb_finish(&mb);
-            as_structure_t *s = build(m, "duplicates");
-            if (!s) { as_mesh_release(m); continue; }
+        for (int k = 0; k < 4; ++k) {
+            as_stiff_args_t args;
+            as_stiff_args_default(&args);
+            args.duplicate_count = counts[k];
+            args.duplicates_among_others = inside;
+            as_stiff_case_data_t c;
+            if (!generate(AS_STIFF_DUPLICATES, &args, &c)) continue;
+            as_structure_t *s = build(c.mesh, "duplicates");
+            if (!s) { as_stiff_case_free(&c); continue; }
             as_structure_stats_t stt;
             CHECK_EQ_INT(as_structure_get_stats(s, &stt), AS_OK);
             CHECK(stt.max_depth <= 64);
-            CHECK(stt.node_count <= 4 * (uint64_t)(counts[c] + 500) + 64);
-            as_ray_t ray;
-            ray_set(&ray, 0.25, 0.25, -1.0, 0, 0, 1, INFINITY);
-            as_hit_t *h = trace(s, &ray, 1, 0, NULL);
-            CHECK_EQ_U64(h[0].prim, first_copy);
+            CHECK(stt.node_count <= 4 * (uint64_t)(counts[k] + 500) + 64);
+            CHECK_EQ_U64(c.ray_count, 1);
+            as_hit_t *h = trace(s, c.rays, 1, 0, NULL);
+            /* The lowest copy: the first triangle after the 500 others. */
+            CHECK_EQ_U64(h[0].prim, inside ? 500 : 0);
+            CHECK_EQ_U64(outcome_failures(&c, 0, 1, h), 0);
             free(h);
             as_structure_release(s);
-            as_mesh_release(m);
+            as_stiff_case_free(&c);
         }
     fprintf(stderr, "  %s duplicates: depth within the cap, lowest copy reported\n", variant_name);
 }
@@ -554,57 +363,27 @@ static void duplicates_keep_depth_and_report_the_lowest_copy(void)
  * middle and quarter planes, on every axis); rays crossing them hit. */
 static void planar_quads_on_split_planes_are_hit(void)
 {
-    mesh_builder mb = {0};
-    /* Corner points give the box [0, 8]^3. */
-    mb_triangle(&mb, mb_vertex(&mb, 0, 0, 0), mb_vertex(&mb, 0.01, 0, 0), mb_vertex(&mb, 0, 0.01, 0));
-    mb_triangle(&mb, mb_vertex(&mb, 8, 8, 8), mb_vertex(&mb, 7.99, 8, 8), mb_vertex(&mb, 8, 7.99, 8));
-    const double planes[] = {2, 4, 6};
-    for (int axis = 0; axis < 3; ++axis)
-        for (int pl = 0; pl < 3; ++pl) {
-            double q[4][3];
-            const double uv[4][2] = {{1, 1}, {7, 1}, {7, 7}, {1, 7}};
-            for (int c = 0; c < 4; ++c) {
-                q[c][axis] = planes[pl];
-                q[c][(axis + 1) % 3] = uv[c][0] + 0.1 * axis;
-                q[c][(axis + 2) % 3] = uv[c][1] + 0.1 * pl;
-            }
-            uint32_t v[4];
-            for (int c = 0; c < 4; ++c) v[c] = mb_vertex(&mb, q[c][0], q[c][1], q[c][2]);
-            mb_triangle(&mb, v[0], v[1], v[2]);
-            mb_triangle(&mb, v[0], v[2], v[3]);
-        }
-    as_mesh_t *m = mb_finish(&mb);
-    as_structure_t *s = build(m, "planar");
-    if (!s) { as_mesh_release(m); return; }
-    const size_t n = 6000;
-    as_ray_t *rays = malloc(sizeof *rays * n);
-    uint64_t st = 15;
-    for (size_t i = 0; i < n; ++i) {
-        const int axis = (int)(i % 3);
-        double o[3], d[3];
-        for (int k = 0; k < 3; ++k) {
-            o[k] = 2 + 4 * ref_rand01(&st);
-            d[k] = 0.2 * (ref_rand01(&st) - 0.5);
-        }
-        o[axis] = (i / 3) % 2 ? -1.0 : 9.0;
-        d[axis] = (i / 3) % 2 ? 1.0 : -1.0;
-        ray_set(&rays[i], o[0], o[1], o[2], d[0], d[1], d[2], INFINITY);
-    }
-    as_hit_t *hits = trace(s, rays, n, 0, NULL);
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_PLANAR_ON_SPLIT, NULL, &c)) return;
+    as_structure_t *s = build(c.mesh, "planar");
+    if (!s) { as_stiff_case_free(&c); return; }
+    const size_t n = c.ray_count;
+    as_hit_t *hits = trace(s, c.rays, n, 0, NULL);
     size_t misses = 0;
     for (size_t i = 0; i < n; ++i) misses += hits[i].prim == AS_NO_HIT;
     fprintf(stderr, "  %s planar: %zu rays crossing quads on split planes, %zu misses\n", variant_name, n, misses);
     CHECK_EQ_U64(misses, 0);
-    CHECK_EQ_U64(against_reference("planar", m, s, rays, n), 0);
+    CHECK_EQ_U64(outcome_failures(&c, 0, n, hits), 0);
+    CHECK_EQ_U64(against_reference("planar", c.mesh, s, c.rays, n), 0);
     free(hits);
-    free(rays);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
 }
 
 /* Secondary rays leaving a surface (shadow, reflection) from hit points
  * offset along the normal by 1e-4 of the scene diagonal (as_rays_shadow's
- * and as_rays_hemisphere's documented offset) never re-hit their source. */
+ * and as_rays_hemisphere's documented offset) never re-hit their source.
+ * The bunny, and the rays this variant's own primary hits give. */
 static void rays_leaving_a_surface_do_not_rehit_it(void)
 {
     as_mesh_t *m = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
@@ -612,32 +391,24 @@ static void rays_leaving_a_surface_do_not_rehit_it(void)
     if (!m) return;
     as_structure_t *s = build(m, "surface");
     if (!s) { as_mesh_release(m); return; }
-    as_mesh_info_t info;
-    as_mesh_get_info(m, &info);
-    as_camera_t cam;
-    as_camera_default(info.bounds_lo, info.bounds_hi, &cam);
-    const uint32_t w = 200, h = 200;
-    as_ray_t *prim = malloc(sizeof *prim * w * h);
-    as_camera_rays(&cam, w, h, prim);
-    as_hit_t *hits = trace(s, prim, (size_t)w * h, 0, NULL);
-    as_secondary_args_t sa;
-    as_secondary_args_default(&sa);
-    sa.tmax_fraction = 0.0f;
-    as_ray_t *sec;
-    size_t ns;
-    uint32_t *from;
-    CHECK_EQ_INT(as_rays_hemisphere(s, prim, hits, (size_t)w * h, &sa, &sec, &ns, &from), AS_OK);
-    as_hit_t *sh = trace(s, sec, ns, 0, NULL);
-    size_t rehit = 0;
-    for (size_t i = 0; i < ns; ++i) rehit += sh[i].prim != AS_NO_HIT && sh[i].prim == hits[from[i]].prim;
-    fprintf(stderr, "  %s surface: %zu rays leaving the surface, %zu re-hit their source\n", variant_name, ns, rehit);
-    CHECK(ns > 0);
-    CHECK_EQ_U64(rehit, 0);
-    free(sh);
-    free(sec);
-    free(from);
-    free(hits);
-    free(prim);
+    as_stiff_args_t args;
+    as_stiff_args_default(&args);
+    args.surface_mesh = m;
+    args.surface_structure = s;
+    as_stiff_case_data_t c;
+    if (generate(AS_STIFF_SURFACE, &args, &c)) {
+        const size_t ns = c.ray_count;
+        as_hit_t *sh = trace(s, c.rays, ns, 0, NULL);
+        size_t rehit = 0;
+        for (size_t i = 0; i < ns; ++i) rehit += sh[i].prim != AS_NO_HIT && sh[i].prim == c.prims[c.outcomes[i].first];
+        fprintf(stderr, "  %s surface: %zu rays leaving the surface, %zu re-hit their source\n", variant_name, ns,
+                rehit);
+        CHECK(ns > 0);
+        CHECK_EQ_U64(rehit, 0);
+        CHECK_EQ_U64(outcome_failures(&c, 0, ns, sh), 0);
+        free(sh);
+        as_stiff_case_free(&c);
+    }
     as_structure_release(s);
     as_mesh_release(m);
 }
@@ -646,25 +417,13 @@ static void rays_leaving_a_surface_do_not_rehit_it(void)
  * written, no hang, at most 2.5x a normal ray's time. */
 static void bad_rays_miss_quickly(void)
 {
-    as_mesh_t *m = random_soup(16, 20000, 0.05, 1, 1);
-    as_structure_t *s = build(m, "bad rays");
-    if (!s) { as_mesh_release(m); return; }
-    const size_t n = 200000;
-    as_ray_t *good = malloc(sizeof *good * n), *bad = malloc(sizeof *bad * n);
-    ref_make_scene_rays(m, n, 17, good);
-    const float nan = NAN, inf = INFINITY;
-    for (size_t i = 0; i < n; ++i) {
-        bad[i] = good[i];
-        switch (i % 7) {
-        case 0: bad[i].tmin = 2.0f; bad[i].tmax = 1.0f; break;
-        case 1: bad[i].dir[0] = bad[i].dir[1] = bad[i].dir[2] = 0.0f; break;
-        case 2: bad[i].org[1] = nan; break;
-        case 3: bad[i].dir[2] = nan; break;
-        case 4: bad[i].org[0] = inf; break;
-        case 5: bad[i].dir[1] = -inf; break;
-        default: bad[i].tmin = nan; break;
-        }
-    }
+    as_stiff_case_data_t c;
+    if (!generate(AS_STIFF_BAD_RAYS, NULL, &c)) return;
+    as_structure_t *s = build(c.mesh, "bad rays");
+    if (!s) { as_stiff_case_free(&c); return; }
+    /* The ordinary rays, then their bad copies. */
+    const size_t n = c.ray_count / 2;
+    const as_ray_t *good = c.rays, *bad = c.rays + n;
     double good_ms = 0, bad_ms = 0;
     free(trace(s, good, n, 0, &good_ms));
     as_hit_t *hits = trace(s, bad, n, 0, &bad_ms);
@@ -674,15 +433,177 @@ static void bad_rays_miss_quickly(void)
             written, bad_ms, good_ms);
     CHECK_EQ_U64(written, 0);
     CHECK(bad_ms <= 2.5 * good_ms + 5.0);
+    CHECK_EQ_U64(outcome_failures(&c, n, 2 * n, hits), 0);
     free(hits);
-    free(good);
-    free(bad);
     as_structure_release(s);
-    as_mesh_release(m);
+    as_stiff_case_free(&c);
+}
+
+/* ---- the generator itself ------------------------------------------------ */
+
+static uint64_t case_hash(const as_stiff_case_data_t *c)
+{
+    as_mesh_info_t info;
+    as_mesh_get_info(c->mesh, &info);
+    uint64_t h = info.hash;
+    const unsigned char *b[3] = {(const void *)c->rays, (const void *)c->outcomes, (const void *)c->prims};
+    const size_t len[3] = {c->ray_count * sizeof *c->rays, c->ray_count * sizeof *c->outcomes,
+                           c->prim_count * sizeof *c->prims};
+    for (int k = 0; k < 3; ++k) /* FNV-1a over the bytes */
+        for (size_t i = 0; i < len[k]; ++i) h = (h ^ b[k][i]) * 1099511628211ull;
+    return h;
+}
+
+static void generator_defaults_are_the_suites(void)
+{
+    as_stiff_args_t a;
+    memset(&a, 0xAB, sizeof a);
+    as_stiff_args_default(&a);
+    CHECK_EQ_U64(a.size, sizeof a);
+    CHECK_EQ_U64(a.seed, 0);
+    CHECK(a.offset == 0.0 && a.edge == 0.0);
+    CHECK_EQ_U64(a.duplicate_count, 10000);
+    CHECK(!a.duplicates_among_others);
+    CHECK_EQ_U64(a.ray_count, 0);
+    CHECK(a.surface_mesh == NULL && a.surface_structure == NULL);
+    for (int k = 1; k <= AS_STIFF_CASE_COUNT; ++k) {
+        const char *name = as_stiff_case_name((as_stiff_case_t)k);
+        CHECK(name != NULL);
+        CHECK_EQ_INT(as_stiff_case_from_name(name), k);
+    }
+    CHECK(as_stiff_case_name(0) == NULL && as_stiff_case_name(AS_STIFF_CASE_COUNT + 1) == NULL);
+    CHECK_EQ_INT(as_stiff_case_from_name("no-such-case"), 0);
+    CHECK_EQ_INT(as_stiff_case_from_name(NULL), 0);
+    /* NULL arguments are the defaults. */
+    as_stiff_case_data_t x, y;
+    if (generate(AS_STIFF_QUAD_SEAM, NULL, &x) && generate(AS_STIFF_QUAD_SEAM, &a, &y)) {
+        CHECK_EQ_U64(case_hash(&x), case_hash(&y));
+        CHECK_EQ_U64(x.ray_count, 4000);
+        CHECK_EQ_U64(x.prim_count, 2);
+        CHECK(x.outcome != NULL && x.outcome[0] != '\0');
+    }
+    as_stiff_case_free(&x);
+    as_stiff_case_free(&y);
+    as_stiff_case_free(NULL);
+    as_stiff_case_free(&x); /* cleared: nothing to free twice */
+}
+
+static void generator_refuses_bad_arguments(void)
+{
+    as_stiff_case_data_t c;
+    as_stiff_args_t a;
+    as_stiff_args_default(&a);
+    CHECK_EQ_INT(as_stiff_case_generate((as_stiff_case_t)0, &a, &c), AS_ERROR_INVALID_ARGUMENT);
+    CHECK(c.mesh == NULL && c.rays == NULL);
+    CHECK_STR_CONTAINS(as_get_error_message(), "unknown case");
+    CHECK_EQ_INT(as_stiff_case_generate((as_stiff_case_t)(AS_STIFF_CASE_COUNT + 1), &a, &c), AS_ERROR_INVALID_ARGUMENT);
+    CHECK_EQ_INT(as_stiff_case_generate(AS_STIFF_QUAD_SEAM, &a, NULL), AS_ERROR_INVALID_ARGUMENT);
+    a.duplicate_count = 0;
+    CHECK_EQ_INT(as_stiff_case_generate(AS_STIFF_DUPLICATES, &a, &c), AS_ERROR_INVALID_ARGUMENT);
+    CHECK_STR_CONTAINS(as_get_error_message(), "duplicate_count");
+    as_stiff_args_default(&a);
+    a.offset = NAN;
+    CHECK_EQ_INT(as_stiff_case_generate(AS_STIFF_WATERTIGHT_CUBE, &a, &c), AS_ERROR_INVALID_ARGUMENT);
+    as_stiff_args_default(&a);
+    a.edge = -1.0;
+    CHECK_EQ_INT(as_stiff_case_generate(AS_STIFF_WATERTIGHT_CUBE, &a, &c), AS_ERROR_INVALID_ARGUMENT);
+    as_stiff_args_default(&a);
+    a.size = 3;
+    CHECK_EQ_INT(as_stiff_case_generate(AS_STIFF_QUAD_SEAM, &a, &c), AS_ERROR_INVALID_ARGUMENT);
+    /* A mesh beyond the float range is the mesh check's to refuse. */
+    as_stiff_args_default(&a);
+    a.edge = 1e38;
+    CHECK_EQ_INT(as_stiff_case_generate(AS_STIFF_WATERTIGHT_CUBE, &a, &c), AS_ERROR_INVALID_MESH);
+    CHECK(c.mesh == NULL);
+}
+
+static void generator_gives_the_same_bytes_for_the_same_seed(void)
+{
+    as_stiff_args_t a;
+    as_stiff_args_default(&a);
+    a.ray_count = 3000;
+    for (int k = 1; k <= AS_STIFF_CASE_COUNT; ++k) {
+        if (k == AS_STIFF_SURFACE) continue; /* built and traced below */
+        as_stiff_case_data_t x, y;
+        a.seed = 7;
+        if (generate((as_stiff_case_t)k, &a, &x) && generate((as_stiff_case_t)k, &a, &y)) {
+            CHECK_EQ_U64(case_hash(&x), case_hash(&y));
+            CHECK(x.ray_count > 0);
+            for (size_t i = 0; i < x.ray_count; ++i)
+                CHECK(x.outcomes[i].same_as == AS_STIFF_NO_RAY || x.outcomes[i].same_as < i);
+        }
+        as_stiff_case_free(&x);
+        as_stiff_case_free(&y);
+    }
+    as_stiff_args_default(&a);
+    as_stiff_case_data_t x, y;
+    if (generate(AS_STIFF_SURFACE, &a, &x) && generate(AS_STIFF_SURFACE, &a, &y)) {
+        CHECK_EQ_U64(case_hash(&x), case_hash(&y));
+        CHECK(x.ray_count > 0);
+    }
+    as_stiff_case_free(&x);
+    as_stiff_case_free(&y);
+}
+
+static void generator_gives_other_meshes_for_another_seed(void)
+{
+    /* The cases whose meshes are random, and the fixed ones whose rays are. */
+    const as_stiff_case_t random_mesh[] = {AS_STIFF_SIGNED_ZERO, AS_STIFF_DYNAMIC_RANGE, AS_STIFF_DEGENERATE,
+                                           AS_STIFF_FLAT, AS_STIFF_BAD_RAYS};
+    const as_stiff_case_t random_rays[] = {AS_STIFF_QUAD_SEAM, AS_STIFF_GRAZING, AS_STIFF_PLANAR_ON_SPLIT};
+    as_stiff_args_t a, b;
+    as_stiff_args_default(&a);
+    a.ray_count = 2000;
+    b = a;
+    b.seed = 1;
+    for (int pass = 0; pass < 2; ++pass)
+        for (int i = 0; i < (pass ? 3 : 5); ++i) {
+            const as_stiff_case_t k = pass ? random_rays[i] : random_mesh[i];
+            as_stiff_case_data_t x, y;
+            if (generate(k, &a, &x) && generate(k, &b, &y)) {
+                as_mesh_info_t ix, iy;
+                as_mesh_get_info(x.mesh, &ix);
+                as_mesh_get_info(y.mesh, &iy);
+                if (pass) CHECK_EQ_U64(ix.hash, iy.hash);
+                else CHECK(ix.hash != iy.hash);
+                CHECK(x.ray_count == y.ray_count && memcmp(x.rays, y.rays, x.ray_count * sizeof *x.rays) != 0);
+            }
+            as_stiff_case_free(&x);
+            as_stiff_case_free(&y);
+        }
+    /* The duplicates among others and the watertight meshes, moved. */
+    a.duplicates_among_others = b.duplicates_among_others = true;
+    as_stiff_case_data_t x, y;
+    if (generate(AS_STIFF_DUPLICATES, &a, &x) && generate(AS_STIFF_DUPLICATES, &b, &y)) {
+        as_mesh_info_t ix, iy;
+        as_mesh_get_info(x.mesh, &ix);
+        as_mesh_get_info(y.mesh, &iy);
+        CHECK(ix.hash != iy.hash);
+        CHECK_EQ_U64(ix.triangle_count, 10500);
+    }
+    as_stiff_case_free(&x);
+    as_stiff_case_free(&y);
+    as_stiff_args_default(&a);
+    a.offset = 1e5; /* not a suite offset: the edge by the spacing rule */
+    if (generate(AS_STIFF_WATERTIGHT_CUBE, &a, &x)) {
+        as_mesh_info_t ix;
+        as_mesh_get_info(x.mesh, &ix);
+        CHECK(ix.bounds_lo[0] == 1e5f);
+        CHECK(ix.bounds_hi[0] - ix.bounds_lo[0] == 6 * 2.0f); /* 256 x 2^-7 = 2 */
+        CHECK_EQ_U64(x.ray_count, 20 * (uint64_t)ix.triangle_count);
+    }
+    as_stiff_case_free(&x);
 }
 
 int main(int argc, char **argv)
 {
+    if (argc > 1 && strcmp(argv[1], "--generator") == 0) {
+        RUN_TEST(generator_defaults_are_the_suites);
+        RUN_TEST(generator_refuses_bad_arguments);
+        RUN_TEST(generator_gives_the_same_bytes_for_the_same_seed);
+        RUN_TEST(generator_gives_other_meshes_for_another_seed);
+        TEST_EXIT();
+    }
     if (argc > 1 && strcmp(argv[1], "--gpu") == 0) {
         device = AS_DEVICE_GPU;
         --argc;
@@ -693,7 +614,7 @@ int main(int argc, char **argv)
         }
     }
     if (argc < 4) {
-        fprintf(stderr, "usage: test_stiff [--gpu] STRUCTURE BUILDER LAYOUT [CASE]\n");
+        fprintf(stderr, "usage: test_stiff [--gpu] STRUCTURE BUILDER LAYOUT [CASE]\n       test_stiff --generator\n");
         return 2;
     }
     as_build_args_default(&variant);

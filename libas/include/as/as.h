@@ -773,6 +773,179 @@ as_error_t as_image_write_png_grey(const char *path, uint32_t width, uint32_t he
 as_error_t as_image_write_png_heat(const char *path, uint32_t width, uint32_t height, const uint32_t *steps,
                                    uint32_t scale_max, uint32_t *scale_used);
 
+/* ------------------------------------------------------------------------ */
+/* Stiff cases                                                              */
+
+/* The stiff-case suite: meshes and rays where floating point is hardest,
+ * each with the outcome a correct tracer gives, generated with fixed seeds
+ * so that the same arguments give the same bytes on every machine. The
+ * suite's own test (tests/test_stiff.c) takes its cases from here; anyone
+ * can test a tracer of their own on them, through these functions or the
+ * as-stiff tool (docs/stiff-cases.md). Every ray is a closest-hit query.
+ * Values are never renumbered; they run from 1 to AS_STIFF_CASE_COUNT. */
+typedef enum as_stiff_case {
+    /* A closed lattice cube (6 x 6 quads a face, two triangles each, shared
+     * vertices) with its corner at `offset` on every axis, and rays from
+     * inside (unbounded) and outside (ending at the centre) aimed exactly at
+     * every vertex and at the quarter points of every edge: every ray hits.
+     * The Moller-Trumbore test leaks here (some rays miss), which is why the
+     * watertight test is the default. */
+    AS_STIFF_WATERTIGHT_CUBE = 1,
+    /* The same rays on a closed latitude-longitude sphere with pole fans (12
+     * rings, 24 segments, radius 4 edges), its box's corner at `offset`. */
+    AS_STIFF_WATERTIGHT_SPHERE = 2,
+    /* Two triangles sharing a diagonal, rays through points of the diagonal
+     * from both sides, slanted: each hits one of the two. */
+    AS_STIFF_QUAD_SEAM = 3,
+    /* 2,000 random triangles; axis-parallel rays from vertex coordinates (on
+     * split planes, box faces, grid walls, octree planes), in groups of four
+     * whose other direction components are +0 and -0: the four give equal
+     * hits, the first the reference's answer, none a NaN. */
+    AS_STIFF_SIGNED_ZERO = 4,
+    /* A 1,000 x 1,000 plane (z = 0) of 3,200 triangles; rays reaching it at
+     * 1e-1 down to 1e-7 radians (the reference's answer), then rays inside
+     * the plane, which meet every triangle edge-on: the documented answer is
+     * a miss. */
+    AS_STIFF_GRAZING = 5,
+    /* 3,000 triangles from 1e-6 to 1e6 in size side by side (log-uniform),
+     * half the rays aimed at triangles' centroids: the reference's answer
+     * with the double-precision intersector (where the float test cancels,
+     * it may disagree; the suite counts how often). */
+    AS_STIFF_DYNAMIC_RANGE = 6,
+    /* 3,000 triangles: repeated indices, collinear vertices, needles of
+     * aspect 1e7 and ordinary ones: zero-area triangles are never hit, the
+     * rest is the reference's answer. */
+    AS_STIFF_DEGENERATE = 7,
+    /* 2,000 triangles all in the plane y = 0.5 (a zero-thickness box), rays
+     * from above and below: the reference's answer, hits from both sides. */
+    AS_STIFF_FLAT = 8,
+    /* `duplicate_count` copies of one triangle, alone or among 500 others,
+     * one ray through it: the hit is the lowest copy. A structure over it
+     * also keeps its depth within its cap and its nodes linear in the count. */
+    AS_STIFF_DUPLICATES = 9,
+    /* Axis-aligned quads lying exactly on the box's middle and quarter
+     * planes (candidate split planes) on every axis, rays crossing them:
+     * every ray hits, the reference's answer. */
+    AS_STIFF_PLANAR_ON_SPLIT = 10,
+    /* Rays leaving a surface: cosine-weighted hemisphere rays (unbounded)
+     * from the hits of 200 x 200 camera rays, offset along the normal by
+     * 1e-4 of the scene diagonal (as_rays_hemisphere): none hits the
+     * triangle it leaves. */
+    AS_STIFF_SURFACE = 11,
+    /* Ordinary rays over 20,000 random triangles, then as many copies with
+     * tmin > tmax, a zero direction, or a NaN or Inf in the origin, the
+     * direction or tmin: the copies miss (no hit written), and take at most
+     * 2.5 times the ordinary rays' time. */
+    AS_STIFF_BAD_RAYS = 12
+} as_stiff_case_t;
+
+#define AS_STIFF_CASE_COUNT 12
+
+/* The name of a case on command lines ("watertight-cube", "seam",
+ * "signed-zero", "bad-rays", ...); NULL for an unknown value. */
+const char *as_stiff_case_name(as_stiff_case_t kind);
+/* The case of that name; 0 for an unknown name. */
+as_stiff_case_t as_stiff_case_from_name(const char *name);
+
+typedef struct as_stiff_args {
+    size_t size;                 /* sizeof(as_stiff_args_t) */
+    uint64_t seed;               /* 0 (default): the suite's own meshes and rays;
+                                    another value gives other random meshes and
+                                    rays of the same kind, where the case draws any
+                                    (the watertight meshes, the seam, the grazing
+                                    plane and the planar quads are fixed; their
+                                    rays, but the watertight ones, are drawn) */
+    double offset;               /* watertight cases: where the mesh lies (its
+                                    box's corner on every axis; the suite uses 0,
+                                    1e6 and 1e7; default 0) */
+    double edge;                 /* watertight cases: the lattice edge (the
+                                    sphere's radius is 4 of them); 0 (default):
+                                    1 at offset 0, 16 at 1e6, 128 at 1e7, else the
+                                    smallest power of two of at least 256 float
+                                    spacings at the offset, so that the spacing
+                                    stays below 1/100 of an edge */
+    uint32_t duplicate_count;    /* duplicates: copies of the triangle (default
+                                    10,000; the suite also uses 2, 10 and 100) */
+    bool duplicates_among_others;/* duplicates: after 500 other triangles
+                                    (default false) */
+    size_t ray_count;            /* 0 (default): the suite's count; else about this
+                                    many rays where the case draws them (seam,
+                                    signed zero in groups of 24, grazing in groups of
+                                    8, dynamic range, degenerate, flat, planar, and
+                                    bad rays, which then gives twice as many) */
+    const as_mesh_t *surface_mesh; /* surface: the mesh the rays leave (copied:
+                                    positions and indices); NULL (default): the
+                                    sphere of AS_STIFF_WATERTIGHT_SPHERE at 0 */
+    const as_structure_t *surface_structure; /* surface: a structure over that mesh
+                                    that traces the camera rays on the CPU; NULL
+                                    (default): a BVH built here. The hits it gives
+                                    are where the rays start, so a caller that
+                                    tests a structure passes it here to get the rays
+                                    its own hits give */
+} as_stiff_args_t;
+void as_stiff_args_default(as_stiff_args_t *args);
+
+/* What one ray of a case must give. */
+typedef enum as_stiff_expect {
+    AS_STIFF_EXPECT_HIT = 1,       /* a hit on some triangle */
+    AS_STIFF_EXPECT_MISS = 2,      /* no hit: prim AS_NO_HIT, t +infinity */
+    AS_STIFF_EXPECT_PRIM = 3,      /* a hit on one of the listed primitives */
+    AS_STIFF_EXPECT_NOT_PRIM = 4,  /* a miss, or a hit on none of the listed primitives */
+    AS_STIFF_EXPECT_REFERENCE = 5  /* the reference's answer: the double-precision
+                                      watertight test over every triangle, agreeing
+                                      as as_verify says (the same primitive, or a
+                                      tie within 1e-6 of the scene diagonal) */
+} as_stiff_expect_t;
+
+#define AS_STIFF_NO_RAY 0xFFFFFFFFu
+
+/* 20 bytes: a ray's correct outcome. A ray meets every condition its
+ * outcome states. */
+typedef struct as_stiff_outcome {
+    uint32_t expect;             /* as_stiff_expect_t */
+    uint32_t first, count;       /* PRIM and NOT_PRIM: the primitives are
+                                    prims[first .. first + count) of the case */
+    uint32_t same_as;            /* AS_STIFF_NO_RAY, or the index of an earlier ray
+                                    whose hit this ray's must equal in every byte */
+    uint32_t reference;          /* 1: besides `expect`, the hit is the
+                                    reference's answer (as for EXPECT_REFERENCE) */
+} as_stiff_outcome_t;
+
+/* A generated case. Everything in it is owned by it until
+ * as_stiff_case_free; a caller that keeps the mesh sets `mesh` to NULL
+ * first (and releases it with as_mesh_release). */
+typedef struct as_stiff_case_data {
+    as_stiff_case_t kind;
+    as_mesh_t *mesh;
+    as_ray_t *rays;              /* ray_count rays */
+    size_t ray_count;
+    as_stiff_outcome_t *outcomes; /* one per ray */
+    uint32_t *prims;             /* the primitive lists the outcomes name */
+    size_t prim_count;
+    as_intersector_t intersector; /* the triangle test the outcomes hold for:
+                                    AS_INTERSECTOR_WATERTIGHT_DOUBLE for dynamic
+                                    range, AS_INTERSECTOR_WATERTIGHT (and its double
+                                    version) for every other case */
+    const char *outcome;         /* the correct outcome in words; static string */
+} as_stiff_case_data_t;
+
+/* Generates a case: its mesh, its rays and each ray's outcome into *out
+ * (cleared first). The same kind and arguments give the same bytes on every
+ * machine and thread count, except the surface case given a structure of
+ * another kind or builder, whose hits may differ on shared edges. `args`
+ * may be NULL (defaults). Fails with INVALID_ARGUMENT for an unknown kind,
+ * a NULL `out`, a size field that is no size of as_stiff_args_t, a
+ * non-finite offset or edge, a negative edge, a duplicate count
+ * of 0 or above 10,000,000, a ray count above 100,000,000, or a surface
+ * structure whose triangle count is not the surface mesh's; with
+ * INVALID_MESH when the watertight mesh at that offset and edge leaves the
+ * float range; OUT_OF_MEMORY. On failure *out holds nothing to free. */
+as_error_t as_stiff_case_generate(as_stiff_case_t kind, const as_stiff_args_t *args, as_stiff_case_data_t *out);
+
+/* Frees what a case holds (the mesh too, unless NULL) and clears it; NULL
+ * and a cleared case are accepted. */
+void as_stiff_case_free(as_stiff_case_data_t *c);
+
 #ifdef __cplusplus
 }
 #endif
