@@ -19,7 +19,8 @@ set(_as_cli_tests
   trace_camera_file_matches_options
   bench_scene_writes_every_workload
   gpu_validation_refuses_damage
-  other_scenes_build_inspect_trace)
+  other_scenes_build_inspect_trace
+  stiff_cases_meet_their_outcomes)
 foreach(_t ${_as_cli_tests})
   add_test(NAME cli_${_t}
     COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/${_t}.sh $<TARGET_FILE_DIR:as-build>

@@ -3,7 +3,7 @@
 
     check_man_pages.py TOOL_DIR SOURCE_DIR
 
-For every tool (as-build, as-inspect, as-convert, as-trace, as-study,
+For every tool (as-build, as-inspect, as-convert, as-trace, as-stiff, as-study,
 as-accuracy):
 
 - the page has the sections NAME, SYNOPSIS, DESCRIPTION, OPTIONS,
@@ -12,7 +12,7 @@ as-accuracy):
   is an entry of the page's OPTIONS section, and every option the OPTIONS
   section names is in --help and is not refused as unknown by the tool;
 - EXIT STATUS lists the status the tool really gives for an unknown option,
-  as a usage error, and, for the four C tools, the same codes as --help;
+  as a usage error, and, for the five C tools, the same codes as --help;
 - groff renders the page without a warning (`groff -man -ww -z`);
 - man/CMakeLists.txt installs the page;
 - every `$ ` line of EXAMPLES runs and exits 0, in one scratch directory
@@ -31,10 +31,10 @@ import subprocess
 import sys
 import tempfile
 
-TOOLS = ["as-build", "as-inspect", "as-convert", "as-trace", "as-study", "as-accuracy"]
+TOOLS = ["as-build", "as-inspect", "as-convert", "as-trace", "as-stiff", "as-study", "as-accuracy"]
 # as-study and as-accuracy are Python scripts; their --help (argparse) prints
 # no exit codes in the C tools' format.
-C_TOOLS = TOOLS[:4]
+C_TOOLS = TOOLS[:5]
 SECTIONS = ["NAME", "SYNOPSIS", "DESCRIPTION", "OPTIONS", "EXIT STATUS", "EXAMPLES", "SEE ALSO"]
 
 failed = False
@@ -143,7 +143,7 @@ def main():
         os.mkdir(bindir)
         for t in C_TOOLS:
             os.symlink(os.path.join(tool_dir, t), os.path.join(bindir, t))
-        for script in TOOLS[4:]:
+        for script in TOOLS[5:]:
             os.symlink(os.path.join(src, "tools", script), os.path.join(bindir, script))
         work = os.path.join(scratch, "work")
         os.mkdir(work)
