@@ -103,7 +103,7 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
     b->prim_total = n;
     b->refs = as_malloc(sizeof(bvh_ref) * (size_t)(n ? n : 1), "BVH primitive references");
     /* A binary tree over n leaves has n - 1 inner nodes. */
-    b->node_capacity = node_capacity_per_ref * (uint64_t)n + 3;
+    b->node_capacity = node_capacity_per_ref * (uint64_t)n + 3 + BVH_NODE_SLACK;
     b->nodes = as_malloc(sizeof(bvh_tmp_node) * b->node_capacity, "BVH build nodes");
     if (!b->refs || !b->nodes) {
         bvh_builder_free(b);
@@ -383,6 +383,62 @@ void bvh_make_leaf(bvh_builder *b, int32_t node, const bvh_ref *refs, uint32_t c
     bvh_report_progress(b, count);
 }
 
+int bvh_local_pair(bvh_local *l, int32_t *left, int32_t *right)
+{
+    if (l->next + 2 > l->end) {
+        bvh_builder *b = l->b;
+        bvh_local_flush(l);
+        /* Never past the capacity: the last chunks shrink. */
+        uint64_t cur = atomic_load_explicit(&b->node_next, memory_order_relaxed), take;
+        do {
+            if (cur + 2 > b->node_capacity) return 0;
+            take = b->node_capacity - cur < BVH_NODE_CHUNK ? b->node_capacity - cur : BVH_NODE_CHUNK;
+        } while (!atomic_compare_exchange_weak(&b->node_next, &cur, cur + take));
+        l->next = cur;
+        l->end = cur + take;
+    }
+    *left = (int32_t)l->next;
+    *right = (int32_t)l->next + 1;
+    l->next += 2;
+    l->splits++;
+    return 1;
+}
+
+void bvh_local_leaf(bvh_local *l, int32_t node, const bvh_ref *refs, uint32_t count)
+{
+    bvh_tmp_node *n = &l->b->nodes[node];
+    n->left = n->right = -1;
+    n->refs = refs; /* an SBVH leaf owns it, even when empty */
+    n->count = count;
+    l->prims += count;
+    /* Progress is reported in steps below its 1% granularity. */
+    if (l->prims > (l->b->prim_total >> 8)) {
+        bvh_report_progress(l->b, l->prims);
+        l->prims = 0;
+    }
+}
+
+void bvh_local_flush(bvh_local *l)
+{
+    bvh_builder *b = l->b;
+    for (; l->next < l->end; ++l->next) {
+        bvh_tmp_node *n = &b->nodes[l->next];
+        n->left = n->right = -1;
+        n->count = 0;
+        n->refs = NULL;
+    }
+    if (l->prims) bvh_report_progress(b, l->prims);
+    if (l->splits) atomic_fetch_add(&b->inner_count, l->splits);
+    l->prims = l->splits = 0;
+}
+
+int bvh_share_task(bvh_builder *b, as_task_pool *pool, const void *task)
+{
+    if (!pool || !as_task_pool_hungry(pool)) return 0;
+    if (atomic_fetch_add(&b->tasks_shared, 1) >= BVH_MAX_SHARED_TASKS) return 0;
+    return as_task_pool_push(pool, task);
+}
+
 
 uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
 {
@@ -496,41 +552,44 @@ typedef struct inplace_ctx {
 /* Builds the subtree of task t: recurses into the left child and loops on
  * the right one, and hands a child to an idle thread when it is big enough
  * to be worth it. */
-static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, inplace_task t)
+static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, inplace_task t)
 {
     bvh_builder *b = ctx->b;
     for (;;) {
         bvh_tmp_node *n = &b->nodes[t.node];
         n->box = t.range.box;
         bvh_range l, r;
+        int32_t ln, rn;
         /* A leaf at the stack's depth whatever its size: the traversal
          * stack holds one entry per level. */
         if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t.range.count <= 1 ||
-            t.depth + 1 >= b->depth_limit || !ctx->split(b, &t.range, &l, &r)) {
-            bvh_make_leaf(b, t.node, b->refs + t.range.first, t.range.count);
+            t.depth + 1 >= b->depth_limit || !ctx->split(b, &t.range, &l, &r) || !bvh_local_pair(loc, &ln, &rn)) {
+            bvh_local_leaf(loc, t.node, b->refs + t.range.first, t.range.count);
             return;
         }
-        const int32_t ln = bvh_new_node(b), rn = bvh_new_node(b);
-        n = &b->nodes[t.node];
         n->left = ln;
         n->right = rn;
         n->count = 0;
         n->refs = NULL;
         const inplace_task lt = {l, ln, t.depth + 1}, rt = {r, rn, t.depth + 1};
-        if (pool && rt.range.count >= BVH_PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &rt)) {
+        if (rt.range.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt)) {
             t = lt;
             continue;
         }
-        inplace_subtree(pool, ctx, lt);
+        inplace_subtree(pool, ctx, loc, lt);
         t = rt;
     }
 }
 
 static void inplace_run(as_task_pool *pool, void *task, void *user)
 {
+    const inplace_ctx *ctx = user;
     inplace_task t;
     memcpy(&t, task, sizeof t);
-    inplace_subtree(pool, user, t);
+    bvh_local loc;
+    bvh_local_init(&loc, ctx->b);
+    inplace_subtree(pool, ctx, &loc, t);
+    bvh_local_flush(&loc);
 }
 
 int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split)
@@ -548,7 +607,7 @@ int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split)
     const unsigned threads = (unsigned)b->max_threads + 1;
     if (threads < 2 || b->ref_count < 2 * BVH_PARALLEL_MIN_PRIMS ||
         !as_task_pool_run(threads, sizeof t, &t, inplace_run, (void *)&ctx))
-        inplace_subtree(NULL, &ctx, t);
+        inplace_run(NULL, &t, (void *)&ctx);
     return root;
 }
 
@@ -668,10 +727,11 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
         b->nodes[r].count = 0;
         b->nodes[root].left = l;
         b->nodes[root].right = r;
+        atomic_fetch_add(&b->inner_count, 1);
     }
-    /* Nodes come in pairs, one pair per split, after the root; every leaf
+    /* One per split (bvh_local_flush counted them); every leaf
      * reported its references to the progress count. */
-    const uint64_t inner = (atomic_load(&b->node_next) - 1) / 2;
+    const uint64_t inner = atomic_load(&b->inner_count);
     const uint64_t refs = atomic_load(&b->prims_done);
     if (refs > INT32_MAX) return as_set_error(AS_ERROR_UNSUPPORTED, "%llu references exceed the 31-bit TRI4 range",
                                               (unsigned long long)refs);

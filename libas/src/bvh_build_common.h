@@ -54,7 +54,48 @@ typedef struct bvh_builder {
     pthread_mutex_t progress_lock;
     double next_report;
     uint32_t depth_limit;     /* a node at depth + 1 >= depth_limit is a leaf */
+    atomic_uint_fast64_t inner_count;  /* splits, summed by bvh_local_flush */
+    atomic_uint tasks_shared;          /* bvh_share_task's pushes */
 } bvh_builder;
+
+/* Tmp nodes are taken from the shared array in chunks of this many per
+ * task, and at most BVH_MAX_SHARED_TASKS tasks are shared, so the array
+ * needs BVH_NODE_SLACK nodes beyond the tree's for the chunks' unused
+ * tails. */
+#define BVH_NODE_CHUNK 64
+#define BVH_MAX_SHARED_TASKS 1024
+#define BVH_NODE_SLACK ((uint64_t)(BVH_MAX_SHARED_TASKS + 2) * BVH_NODE_CHUNK)
+
+/* What one task (a subtree on one thread) allocates and counts on its own:
+ * a chunk of tmp nodes and the references and splits it has not yet added
+ * to the builder's shared counters. With a shared counter per node and per
+ * leaf, two threads spent their time passing its cache line back and forth
+ * (and writing neighbouring nodes of one cache line). */
+typedef struct bvh_local {
+    bvh_builder *b;
+    uint64_t next, end;   /* the chunk: node indices [next, end) */
+    uint64_t prims;       /* leaf references not yet reported */
+    uint64_t splits;      /* inner nodes not yet counted */
+} bvh_local;
+
+static inline void bvh_local_init(bvh_local *l, bvh_builder *b)
+{
+    l->b = b;
+    l->next = l->end = 0;
+    l->prims = l->splits = 0;
+}
+/* Two fresh tmp nodes (*left, *right) for one split; 0 when the capacity
+ * is exhausted. */
+int bvh_local_pair(bvh_local *l, int32_t *left, int32_t *right);
+/* As bvh_make_leaf, counting the references locally. */
+void bvh_local_leaf(bvh_local *l, int32_t node, const bvh_ref *refs, uint32_t count);
+/* Adds the local counts to the builder's and marks the chunk's unused
+ * nodes as empty leaves (so that a scan of the array meets no garbage). */
+void bvh_local_flush(bvh_local *l);
+/* Pushes a task to the pool if a thread is hungry and the shared-task cap
+ * allows; 0 when the caller must run it itself. */
+struct as_task_pool;
+int bvh_share_task(bvh_builder *b, struct as_task_pool *pool, const void *task);
 
 /* Checks the arguments shared by every BVH builder, fills the references
  * (degenerate triangles left out) and allocates node_capacity_per_ref x
@@ -99,13 +140,7 @@ static inline bvh_box bvh_box_from_v4f(v4f lo, v4f hi)
 }
 
 /* Half the surface area in float, for comparing bins; 0 when inverted. */
-static inline float v4f_box_half_area(v4f lo, v4f hi)
-{
-    float d[4];
-    v4f_store(d, v4f_sub(hi, lo));
-    if (d[0] < 0.0f || d[1] < 0.0f || d[2] < 0.0f) return 0.0f;
-    return d[0] * d[1] + d[1] * d[2] + d[2] * d[0];
-}
+static inline float v4f_box_half_area(v4f lo, v4f hi) { return v4f_half_area(lo, hi); }
 
 bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count);
 /* The box of lo + hi over the references: twice their centroids' box, the

@@ -453,14 +453,20 @@ static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uin
     return ok;
 }
 
-static void sbvh_subtree(as_task_pool *pool, sbvh_task t)
+static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_task t)
 {
     bvh_builder *b = t.ctx->b;
     for (;;) {
         sides sd = {NULL, NULL, 0, 0};
+        int32_t l, r;
         if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t.count <= 1 || t.depth + 1 >= b->depth_limit ||
             !sbvh_split(t.ctx, &b->nodes[t.node].box, t.refs, t.count, t.budget, &sd)) {
-            bvh_make_leaf(b, t.node, t.refs, t.count);
+            bvh_local_leaf(loc, t.node, t.refs, t.count);
+            return;
+        }
+        if (!bvh_local_pair(loc, &l, &r)) {
+            sides_free(&sd);
+            bvh_local_leaf(loc, t.node, t.refs, t.count);
             return;
         }
         free(t.refs);
@@ -469,7 +475,6 @@ static void sbvh_subtree(as_task_pool *pool, sbvh_task t)
         const uint64_t lbudget = (uint64_t)((double)rest * sd.nl / ((double)sd.nl + sd.nr));
         const uint64_t rbudget = rest - lbudget;
 
-        const int32_t l = bvh_new_node(b), r = bvh_new_node(b);
         bvh_tmp_node *ln = &b->nodes[l], *rn = &b->nodes[r];
         ln->box = bvh_refs_box(sd.l, sd.nl);
         rn->box = bvh_refs_box(sd.r, sd.nr);
@@ -481,11 +486,11 @@ static void sbvh_subtree(as_task_pool *pool, sbvh_task t)
 
         const sbvh_task lt = {t.ctx, l, sd.l, sd.nl, lbudget, t.depth + 1};
         const sbvh_task rt = {t.ctx, r, sd.r, sd.nr, rbudget, t.depth + 1};
-        if (pool && rt.count >= BVH_PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &rt)) {
+        if (rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt)) {
             t = lt;
             continue;
         }
-        sbvh_subtree(pool, lt);
+        sbvh_subtree(pool, loc, lt);
         t = rt;
     }
 }
@@ -495,7 +500,10 @@ static void sbvh_run(as_task_pool *pool, void *task, void *user)
     (void)user;
     sbvh_task t;
     memcpy(&t, task, sizeof t);
-    sbvh_subtree(pool, t);
+    bvh_local loc;
+    bvh_local_init(&loc, t.ctx->b);
+    sbvh_subtree(pool, &loc, t);
+    bvh_local_flush(&loc);
 }
 
 as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
@@ -519,7 +527,7 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     if (extra < 0) extra = 0;
     const uint64_t budget = (uint64_t)extra;
     free(b.nodes);
-    b.node_capacity = 2 * ((uint64_t)b.ref_count + budget) + 3;
+    b.node_capacity = 2 * ((uint64_t)b.ref_count + budget) + 3 + BVH_NODE_SLACK;
     b.nodes = as_malloc(sizeof(bvh_tmp_node) * b.node_capacity, "SBVH build nodes");
     bvh_ref *root_refs = as_malloc(sizeof(bvh_ref) * (size_t)(b.ref_count ? b.ref_count : 1), "SBVH references");
     if (!b.nodes || !root_refs) {
@@ -539,7 +547,7 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     const sbvh_task t = {&ctx, root, root_refs, b.ref_count, budget, 0};
     const unsigned threads = (unsigned)b.max_threads + 1;
     if (threads < 2 || b.ref_count < 2 * BVH_PARALLEL_MIN_PRIMS || !as_task_pool_run(threads, sizeof t, &t, sbvh_run, NULL))
-        sbvh_subtree(NULL, t);
+        sbvh_run(NULL, (void *)&t, NULL);
     err = bvh_builder_finish(&b, root, AS_BUILDER_BVH_SBVH, s, t_start);
     /* Every leaf owns its reference array. */
     const uint64_t used = atomic_load(&b.node_next);
