@@ -497,8 +497,8 @@ uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
 
 /* ---- the in-place recursion shared by the binned, sweep and mid-cut builders */
 
-uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
-                              bvh_range *right)
+static uint32_t partition_hoare(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
+                                bvh_range *right)
 {
     bvh_ref *refs = b->refs;
     uint32_t i = node->first, j = node->first + node->count;
@@ -536,6 +536,87 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
     right->box = s->right;
     right->cbox = bvh_box_from_v4f(rclo, rchi);
     return i;
+}
+
+/* The same permutation as Hoare's partition above (the k-th reference that
+ * goes right among the first `left count` trades places with the k-th that
+ * goes left among the rest, counted from the end), found without its
+ * data-dependent branches: a first pass writes each reference's side into a
+ * bit mask and grows both sides' centroid boxes through selects, a second
+ * visits only the misplaced references through the masks' set bits. */
+uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
+                              bvh_range *right)
+{
+    const uint32_t count = node->count, nwords = (count + 63) / 64;
+    uint64_t stack_bits[256];
+    uint64_t *bits = stack_bits;
+    if (nwords > sizeof stack_bits / sizeof stack_bits[0]) {
+        bits = malloc(sizeof(uint64_t) * nwords);
+        if (!bits) return partition_hoare(b, node, s, left, right);
+    }
+    bvh_ref *refs = b->refs + node->first;
+    const int a = s->axis;
+    const v4f vcmin = v4f_set3(s->cmin), vscale = v4f_set3(s->scale), vlimit = v4f_set1(s->limit);
+    const v4f inf = v4f_set1(INFINITY), ninf = v4f_set1(-INFINITY);
+    /* For a reference on side f (1: left), max(c, lsel[f]) is c when it goes
+     * left and +inf when not, min(c, rsel[f]) c or -inf; the other side
+     * takes the opposite pair. */
+    const v4f lsel[2] = {inf, ninf}, rsel[2] = {ninf, inf};
+    v4f lclo = inf, lchi = ninf, rclo = inf, rchi = ninf;
+    uint32_t nl = 0;
+    for (uint32_t w = 0; w < nwords; ++w) {
+        const uint32_t first = 64 * w, n = count - first < 64 ? count - first : 64;
+        uint64_t word = 0;
+        for (uint32_t k = 0; k < n; ++k) {
+            const bvh_ref *r = &refs[first + k];
+            const v4f c = v4f_add(v4f_load3(r->lo), v4f_load3(r->hi));
+            /* bvh_object_split_left's operations, lane a. */
+            const uint32_t f = (uint32_t)(v4f_lt_mask(v4f_mul(v4f_sub(c, vcmin), vscale), vlimit) >> a) & 1u;
+            word |= (uint64_t)f << k;
+            nl += f;
+            lclo = v4f_min(lclo, v4f_max(c, lsel[f]));
+            lchi = v4f_max(lchi, v4f_min(c, rsel[f]));
+            rclo = v4f_min(rclo, v4f_max(c, rsel[f]));
+            rchi = v4f_max(rchi, v4f_min(c, lsel[f]));
+        }
+        bits[w] = word;
+    }
+    /* Misplaced: a zero bit below nl, a one bit from nl on. */
+    uint32_t wl = 0, wr = nwords - 1;
+#define LEFT_MASK(w) (64 * (w) + 64 <= nl ? ~bits[w] : ~bits[w] & (((uint64_t)1 << (nl - 64 * (w))) - 1))
+#define RIGHT_MASK(w)                                                                                      \
+    (64 * (w) >= nl ? bits[w] : nl - 64 * (w) >= 64 ? 0 : bits[w] & ~(((uint64_t)1 << (nl - 64 * (w))) - 1))
+    uint64_t lm = nl ? LEFT_MASK(0) : 0, rm = RIGHT_MASK(wr);
+    for (;;) {
+        while (!lm) {
+            if (64 * ++wl >= nl) goto done;
+            lm = LEFT_MASK(wl);
+        }
+        while (!rm) {
+            --wr;
+            rm = RIGHT_MASK(wr);
+        }
+        const uint32_t p = 64 * wl + (uint32_t)__builtin_ctzll(lm), hb = 63 - (uint32_t)__builtin_clzll(rm);
+        const uint32_t q = 64 * wr + hb;
+        const bvh_ref t = refs[p];
+        refs[p] = refs[q];
+        refs[q] = t;
+        lm &= lm - 1;
+        rm &= ~((uint64_t)1 << hb);
+    }
+done:
+#undef LEFT_MASK
+#undef RIGHT_MASK
+    if (bits != stack_bits) free(bits);
+    left->first = node->first;
+    left->count = nl;
+    left->box = s->left;
+    left->cbox = bvh_box_from_v4f(lclo, lchi);
+    right->first = node->first + nl;
+    right->count = count - nl;
+    right->box = s->right;
+    right->cbox = bvh_box_from_v4f(rclo, rchi);
+    return node->first + nl;
 }
 
 typedef struct inplace_task {
