@@ -444,6 +444,29 @@ uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
 {
     *cost = INFINITY;
     if (count < 2 || count > BVH_SMALL_NODE) return 0;
+    if (count == 2) {
+        /* The most frequent case (every pair of references decides whether
+         * to become two leaves): one plane per axis, and each costs the
+         * two references' areas, so the general loops below pick the first
+         * axis whose centroids differ, with the lower centroid left. */
+        const v4f lo0 = v4f_load3(refs[0].lo), hi0 = v4f_load3(refs[0].hi);
+        const v4f lo1 = v4f_load3(refs[1].lo), hi1 = v4f_load3(refs[1].hi);
+        const v4f c0 = v4f_add(lo0, hi0), c1 = v4f_add(lo1, hi1);
+        const int lt = v4f_lt_mask(c1, c0) & 7, gt = v4f_lt_mask(c0, c1) & 7;
+        const int differ = lt | gt;
+        if (!differ) return 0;
+        const int axis_bit = differ & -differ;
+        const float a0 = v4f_box_half_area(lo0, hi0), a1 = v4f_box_half_area(lo1, hi1);
+        if (lt & axis_bit) {
+            *cost = (double)a1 + (double)a0;
+            const bvh_ref t = refs[0];
+            refs[0] = refs[1];
+            refs[1] = t;
+        } else {
+            *cost = (double)a0 + (double)a1;
+        }
+        return 1;
+    }
     v4f lo[BVH_SMALL_NODE], hi[BVH_SMALL_NODE];
     float key[3][BVH_SMALL_NODE];
     for (uint32_t i = 0; i < count; ++i) {
