@@ -127,9 +127,12 @@ void bvh_builder_free(bvh_builder *b)
 
 bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count)
 {
-    bvh_box bx = bvh_box_empty();
-    for (uint32_t i = 0; i < count; ++i) bvh_box_grow(&bx, refs[i].lo, refs[i].hi);
-    return bx;
+    v4f lo = v4f_set1(INFINITY), hi = v4f_set1(-INFINITY);
+    for (uint32_t i = 0; i < count; ++i) {
+        lo = v4f_min(lo, v4f_load3(refs[i].lo));
+        hi = v4f_max(hi, v4f_load3(refs[i].hi));
+    }
+    return bvh_box_from_v4f(lo, hi);
 }
 
 bvh_box bvh_refs_centroid2_box(const bvh_ref *refs, uint32_t count)

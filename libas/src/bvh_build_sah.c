@@ -32,8 +32,12 @@ static int binned_split(bvh_builder *b, const bvh_range *node, bvh_range *left, 
         left->count = nl;
         right->first = node->first + nl;
         right->count = count - nl;
-        bvh_range_bound(b, left);
-        bvh_range_bound(b, right);
+        /* Below BVH_SMALL_NODE only the box is read, never the centroid
+         * box: one min and one max per reference instead of four and an
+         * add. */
+        left->box = bvh_refs_box(b->refs + left->first, left->count);
+        right->box = bvh_refs_box(b->refs + right->first, right->count);
+        left->cbox = right->cbox = left->box;
         return 1;
     }
     const bvh_object_split s = bvh_find_object_split(b->refs + node->first, count, &node->cbox, b->args->bin_count);

@@ -32,12 +32,9 @@ static inline v4f v4f_min(v4f a, v4f b) { return _mm_min_ps(a, b); }
 static inline v4f v4f_max(v4f a, v4f b) { return _mm_max_ps(a, b); }
 /* Truncates each lane towards zero (lanes must be in int32 range). */
 static inline void v4f_to_i32(v4f a, int32_t out[4]) { _mm_storeu_si128((__m128i *)out, _mm_cvttps_epi32(a)); }
-/* Rows to columns: a, b, c, d become their x, y, z and w lanes. */
-static inline void v4f_transpose(v4f *a, v4f *b, v4f *c, v4f *d) { _MM_TRANSPOSE4_PS(*a, *b, *c, *d); }
-/* Bit i set where a[i] < b[i] (or ==): a comparison's lanes as an integer,
- * for counting without branches. */
+/* Bit i set where a[i] < b[i]: a comparison's lanes as an integer, for
+ * selecting without branches. */
 static inline int v4f_lt_mask(v4f a, v4f b) { return _mm_movemask_ps(_mm_cmplt_ps(a, b)); }
-static inline int v4f_eq_mask(v4f a, v4f b) { return _mm_movemask_ps(_mm_cmpeq_ps(a, b)); }
 /* Half the surface area of the box lo..hi (x, y, z lanes) in float, 0 when
  * inverted: dx dy + dy dz + dz dx, the products and sums in that order, so
  * it equals the scalar form bit for bit. In registers: the builders' sweeps
@@ -74,24 +71,10 @@ static inline v4f v4f_min(v4f a, v4f b) { AS_V4F_LANES(a.v[i] < b.v[i] ? a.v[i] 
 static inline v4f v4f_max(v4f a, v4f b) { AS_V4F_LANES(a.v[i] > b.v[i] ? a.v[i] : b.v[i]); }
 #undef AS_V4F_LANES
 static inline void v4f_to_i32(v4f a, int32_t out[4]) { for (int i = 0; i < 4; ++i) out[i] = (int32_t)a.v[i]; }
-static inline void v4f_transpose(v4f *a, v4f *b, v4f *c, v4f *d)
-{
-    v4f *r[4] = {a, b, c, d};
-    v4f t[4];
-    for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) t[j].v[i] = r[i]->v[j];
-    for (int j = 0; j < 4; ++j) *r[j] = t[j];
-}
 static inline int v4f_lt_mask(v4f a, v4f b)
 {
     int m = 0;
     for (int i = 0; i < 4; ++i) m |= (a.v[i] < b.v[i]) << i;
-    return m;
-}
-static inline int v4f_eq_mask(v4f a, v4f b)
-{
-    int m = 0;
-    for (int i = 0; i < 4; ++i) m |= (a.v[i] == b.v[i]) << i;
     return m;
 }
 static inline float v4f_half_area(v4f lo, v4f hi)
