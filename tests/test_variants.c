@@ -137,41 +137,19 @@ static void variant_matches_reference_on_random_soups(void)
 
 /* A cube of n x n quads per face on the integer lattice (vertices shared, so
  * closed), offset by `offset`. */
-static as_mesh_t *lattice_cube(int n, float offset)
+/* The stiff suite's lattice cube (6 x 6 quads a face, shared vertices,
+ * unit edges) with its corner at `offset`. */
+static as_mesh_t *lattice_cube(float offset)
 {
-    const int side = n + 1;
-    int32_t *id = malloc(sizeof(int32_t) * side * side * side);
-    float *p = malloc(sizeof(float) * 3 * side * side * side);
-    uint32_t nv = 0;
-    for (int i = 0; i < side; ++i)
-        for (int j = 0; j < side; ++j)
-            for (int k = 0; k < side; ++k) {
-                const int on = i == 0 || j == 0 || k == 0 || i == n || j == n || k == n;
-                id[(i * side + j) * side + k] = on ? (int32_t)nv : -1;
-                if (on) { p[3 * nv] = offset + i; p[3 * nv + 1] = offset + j; p[3 * nv + 2] = offset + k; ++nv; }
-            }
-    uint32_t *ix = malloc(sizeof(uint32_t) * 36 * n * n), nt = 0;
-    for (int f = 0; f < 6; ++f) {
-        const int axis = f / 2, fixed = (f % 2) ? n : 0;
-        for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b) {
-                uint32_t v[4];
-                const int uv[4][2] = {{a, b}, {a + 1, b}, {a + 1, b + 1}, {a, b + 1}};
-                for (int c = 0; c < 4; ++c) {
-                    int q[3];
-                    q[axis] = fixed;
-                    q[(axis + 1) % 3] = uv[c][0];
-                    q[(axis + 2) % 3] = uv[c][1];
-                    v[c] = (uint32_t)id[(q[0] * side + q[1]) * side + q[2]];
-                }
-                ix[3 * nt] = v[0]; ix[3 * nt + 1] = v[1]; ix[3 * nt + 2] = v[2]; ++nt;
-                ix[3 * nt] = v[0]; ix[3 * nt + 1] = v[2]; ix[3 * nt + 2] = v[3]; ++nt;
-            }
-    }
-    as_mesh_t *m = as_mesh_create(nv, p, nt, ix);
-    free(id);
-    free(p);
-    free(ix);
+    as_stiff_args_t a;
+    as_stiff_args_default(&a);
+    a.offset = offset;
+    a.edge = 1.0;
+    as_stiff_case_data_t c;
+    if (as_stiff_case_generate(AS_STIFF_WATERTIGHT_CUBE, &a, &c) != AS_OK) return NULL;
+    as_mesh_t *m = c.mesh;
+    c.mesh = NULL;
+    as_stiff_case_free(&c);
     return m;
 }
 
@@ -180,7 +158,9 @@ static void variant_has_no_leaks_on_closed_meshes(void)
     const float offsets[] = {0.0f, 1000.0f};
     for (size_t c = 0; c < 2; ++c) {
         const int n = 6;
-        as_mesh_t *m = lattice_cube(n, offsets[c]);
+        as_mesh_t *m = lattice_cube(offsets[c]);
+        CHECK(m != NULL);
+        if (!m) continue;
         as_structure_t *s = build_saved_and_loaded(m);
         if (!s) { as_mesh_release(m); continue; }
         const float ctr = offsets[c] + n / 2.0f;
