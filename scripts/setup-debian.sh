@@ -3,7 +3,7 @@
 # Debian package: when nvcc is on PATH (or under CUDA_PATH or
 # /usr/local/cuda), the CUDA back end is built too.
 set -euo pipefail
-pkgs=(cmake make gcc g++ pkg-config libzstd-dev zstd libdraco-dev libopenmesh-dev zlib1g-dev libxxhash-dev clang python3 libembree-dev groff-base)
+pkgs=(cmake make gcc g++ pkg-config libzstd-dev zstd libdraco-dev libopenmesh-dev zlib1g-dev libxxhash-dev clang python3 python3-numpy python3-zstandard libembree-dev groff-base)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
