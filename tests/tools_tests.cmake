@@ -29,3 +29,10 @@ foreach(_t ${_as_cli_tests})
 endforeach()
 set_tests_properties(cli_other_scenes_build_inspect_trace PROPERTIES LABELS "cli;scenes")
 set_tests_properties(cli_gpu_validation_refuses_damage PROPERTIES LABELS "cli;gpu")
+
+# tools/as-study (label tools): two partial studies of the bundled bunny on the
+# CPU at a tiny image, merged with --merge and compared with one run of both.
+add_test(NAME tools_as_study_merge
+  COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_study_merge.py $<TARGET_FILE_DIR:as-build>
+          ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/as-study-merge-out)
+set_tests_properties(tools_as_study_merge PROPERTIES LABELS tools TIMEOUT 300)
