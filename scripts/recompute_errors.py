@@ -586,7 +586,9 @@ def shadow_rays(args, info, tris, present):
         dirs.append(np.array(L) - start)
     org, dirs = np.concatenate(orgs), np.concatenate(dirs)
     n = len(org)
-    return org, np.zeros(n), dirs, np.ones(n)
+    # The light is at t = 1; stopping short of it keeps a light that lies on
+    # a surface from shadowing itself.
+    return org, np.zeros(n), dirs, np.full(n, 1 - 1e-4)
 
 
 # ---- commands -----------------------------------------------------------------
@@ -626,6 +628,18 @@ def cmd_check(args):
     else:
         sample = np.sort(np.random.default_rng(args.seed).choice(count, size=args.samples, replace=False))
     n = len(sample)
+    row = None
+    if args.compare:
+        row, source, n_other = load_compare(args.compare, args.select)
+        # The hit file does not say which query it answers; the JSON does.
+        q = row.get("query")
+        row_any = {"any": True, "any hit": True, "closest": False, "closest hit": False}.get(q)
+        if args.any_hit is None:
+            args.any_hit = bool(row_any)
+        elif row_any is not None and row_any != args.any_hit:
+            fail(EXIT_USAGE, "%s: the selected row answers the %s query, but %s was given"
+                 % (args.compare, "any-hit" if row_any else "closest-hit", "--any-hit" if args.any_hit else "--closest-hit"))
+    args.any_hit = bool(args.any_hit)
     scene = Scene(tris, present)
     c, rel, absd, examples = recompute(scene, diag, rays, hits, sample, args.any_hit, not args.quiet)
     res = {
@@ -649,8 +663,7 @@ def cmd_check(args):
     res["max_t_error_diagonal"] = max(absd) if absd else (None if args.any_hit else 0.0)
     res["examples"] = examples
     code = 0
-    if args.compare:
-        row, source, n_other = load_compare(args.compare, args.select)
+    if row is not None:
         res["compare"] = compare(res, row, source, n_other, args.alpha, count)
         res["compare"]["file"] = args.compare
         if not res["compare"]["agree"]:
@@ -712,7 +725,12 @@ def main(argv=None):
     c.add_argument("asf", help="the .asf the hits were traced through (its triangles are the scene)")
     c.add_argument("rays", help="ray file (formats/SPEC.md 4)")
     c.add_argument("hits", help="hit file written by as-trace --rays RAYS --hits-out HITS")
-    c.add_argument("--any-hit", action="store_true", help="the hits answer an any-hit query (as-trace --any-hit)")
+    q = c.add_mutually_exclusive_group()
+    q.add_argument("--any-hit", dest="any_hit", action="store_const", const=True, default=None,
+                   help="the hits answer an any-hit query (as-trace --any-hit); default: the query of the "
+                        "--compare row, else closest hit")
+    q.add_argument("--closest-hit", dest="any_hit", action="store_const", const=False,
+                   help="the hits answer a closest-hit query")
     c.add_argument("--samples", type=int, default=10000, help="rays to check (default 10000; all when larger)")
     c.add_argument("--seed", type=int, default=1, help="sampling seed (default 1)")
     c.add_argument("--json", metavar="FILE", help="write the figures as JSON to FILE ('-': stdout only)")
@@ -733,7 +751,7 @@ def main(argv=None):
     r.add_argument("-W", "--width", type=int, default=320)
     r.add_argument("-H", "--height", type=int, default=240)
     r.add_argument("--shadow-from", nargs=2, metavar=("RAYS", "HITS"),
-                   help="shadow rays from these hits toward the lights, tmin 0, tmax 1 at the light")
+                   help="shadow rays from these hits toward the lights (the light at t = 1)")
     r.add_argument("--toward-vertices", type=int, default=0, metavar="N",
                    help="N rays from the eye aimed at vertices and edge midpoints of random triangles")
     r.add_argument("--seed", type=int, default=1, help="seed of --toward-vertices (default 1)")
