@@ -325,13 +325,17 @@ def ppm(k, n):
     return 1e6 * k / n if n else None
 
 
-def recompute(scene, diag, rays, hits, sample, any_hit, progress):
+COUNTS = ("false_misses", "false_hits", "wrong_primitive", "wrong_primitive_strict", "reference_hits", "reported_hits")
+MAX_EXAMPLES = 20
+_job = None  # (scene, diag, rays, hits, any_hit): inherited by forked workers, not pickled
+
+
+def recompute_block(sample):
+    scene, diag, rays, hits, any_hit = _job
     tol = 1e-6 * diag
-    c = {"false_misses": 0, "false_hits": 0, "wrong_primitive": 0, "wrong_primitive_strict": 0,
-         "reference_hits": 0, "reported_hits": 0}
+    c = dict.fromkeys(COUNTS, 0)
     rel, absd, examples = [], [], []
-    t0, last = time.time(), time.time()
-    for j, i in enumerate(sample.tolist()):
+    for i in sample.tolist():
         r = rays[i]
         o, d = (float(r[0]), float(r[1]), float(r[2])), (float(r[4]), float(r[5]), float(r[6]))
         tmin, tmax = float(r[3]), float(r[7])
@@ -369,17 +373,48 @@ def recompute(scene, diag, rays, hits, sample, any_hit, progress):
                     absd.append(err / diag if diag > 0 else 0.0)
         if kind:
             c[{"false_hit": "false_hits", "false_miss": "false_misses"}.get(kind, kind)] += 1
-            if len(examples) < 20:
+            if len(examples) < MAX_EXAMPLES:
                 examples.append({"ray": i, "kind": kind, "reported_prim": None if got_p == NO_HIT else got_p,
                                  "reported_t": got_t if got_hit else None,
                                  "reference_prim": None if ref_p == NO_HIT else ref_p,
                                  "reference_t": ref_t if ref_p != NO_HIT else None})
-        if progress and time.time() - last > 10:
-            last = time.time()
-            rate = (j + 1) / (last - t0)
-            sys.stderr.write("%s: %d of %d rays (%.0f rays/s, about %.0f s left)\n"
-                             % (TOOL, j + 1, len(sample), rate, (len(sample) - j - 1) / rate))
-    return c, rel, absd, examples
+    return len(sample), c, rel, absd, examples
+
+
+def recompute(scene, diag, rays, hits, sample, any_hit, jobs, progress):
+    global _job
+    _job = (scene, diag, rays, hits, any_hit)
+    blocks = [sample[k:k + 256] for k in range(0, len(sample), 256)]
+    c = dict.fromkeys(COUNTS, 0)
+    rel, absd, examples = [], [], []
+    t0 = last = time.time()
+    done = 0
+    pool = None
+    if jobs > 1 and len(blocks) > 1:
+        import multiprocessing
+        pool = multiprocessing.get_context("fork").Pool(min(jobs, len(blocks)))
+        results = pool.imap_unordered(recompute_block, blocks)
+    else:
+        results = map(recompute_block, blocks)
+    try:
+        for n, bc, brel, babsd, bex in results:
+            for k in COUNTS:
+                c[k] += bc[k]
+            rel += brel
+            absd += babsd
+            examples += bex
+            done += n
+            if progress and time.time() - last > 10:
+                last = time.time()
+                rate = done / (last - t0)
+                sys.stderr.write("%s: %d of %d rays (%.0f rays/s, about %.0f s left)\n"
+                                 % (TOOL, done, len(sample), rate, (len(sample) - done) / rate))
+    finally:
+        if pool:
+            pool.close()
+            pool.join()
+    examples.sort(key=lambda e: e["ray"])
+    return c, rel, absd, examples[:MAX_EXAMPLES]
 
 
 # ---- comparing with as-trace or as-accuracy JSON ------------------------------
@@ -641,7 +676,7 @@ def cmd_check(args):
                  % (args.compare, "any-hit" if row_any else "closest-hit", "--any-hit" if args.any_hit else "--closest-hit"))
     args.any_hit = bool(args.any_hit)
     scene = Scene(tris, present)
-    c, rel, absd, examples = recompute(scene, diag, rays, hits, sample, args.any_hit, not args.quiet)
+    c, rel, absd, examples = recompute(scene, diag, rays, hits, sample, args.any_hit, args.jobs, not args.quiet)
     res = {
         "tool": TOOL, "asf": args.asf, "rays": args.rays, "hits": args.hits,
         "query": "any" if args.any_hit else "closest", "reference": "watertight test in float64, brute force",
@@ -739,6 +774,8 @@ def main(argv=None):
                    help="the row of --compare to use, e.g. workload=primary, intersector=watertight")
     c.add_argument("--alpha", type=float, default=0.01,
                    help="disagree when the two-sided p-value of equal rates is below this (default 0.01)")
+    c.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1,
+                   help="worker processes (default: one per core)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress")
     r = sub.add_parser("rays", help="write a ray file for as-trace --rays")
     r.add_argument("asf", help="the .asf whose scene box places the default camera and lights")
@@ -761,8 +798,8 @@ def main(argv=None):
     args = p.parse_args(argv)
     try:
         if args.command == "check":
-            if args.samples <= 0:
-                p.error("--samples needs a positive count")
+            if args.samples <= 0 or args.jobs <= 0:
+                p.error("--samples and --jobs need positive counts")
             return cmd_check(args)
         if args.width <= 0 or args.height <= 0:
             p.error("--width and --height need positive counts")
