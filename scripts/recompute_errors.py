@@ -4,6 +4,7 @@
     recompute_errors.py check SCENE.asf RAYS HITS [--any-hit] [--samples N]
                         [--seed S] [--json OUT] [--compare FILE [--select K=V]...]
     recompute_errors.py rays SCENE.asf -o OUT.rays [camera options]
+    recompute_errors.py rays SCENE.asf -o OUT.rays --toward-vertices N [camera options]
     recompute_errors.py rays SCENE.asf -o OUT.rays --shadow-from RAYS HITS [--light X,Y,Z]...
 
 `check` reads the three files by formats/SPEC.md alone (no libas code, no
@@ -259,7 +260,7 @@ class Scene:
         stops at the first chunk with a hit. (inf, NO_HIT) on a miss."""
         if not (tmin <= tmax) or not all(math.isfinite(x) for x in o + d) or d == (0.0, 0.0, 0.0):
             return math.inf, NO_HIT
-        # Woop, Benthin & Wald: shear so the ray runs along +z; with every
+        # Woop, Benthin & Wald: shear so the ray runs along the z axis; with every
         # vertex transformed once per ray, a shared edge gets the same edge
         # function (negated) from both triangles, so no ray passes between.
         kz = max(range(3), key=lambda k: abs(d[k]))
@@ -753,8 +754,11 @@ def print_summary(res):
 def main(argv=None):
     p = argparse.ArgumentParser(prog="recompute_errors.py", description=__doc__.split("\n\n")[1],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.error = lambda msg: (p.print_usage(sys.stderr), sys.stderr.write("%s: error: %s\n" % (TOOL, msg)),
-                           sys.exit(EXIT_USAGE))
+    def usage_error(parser):
+        # argparse exits 2, which the project's tools keep for I/O errors.
+        return lambda msg: (parser.print_usage(sys.stderr), sys.stderr.write("%s: error: %s\n" % (TOOL, msg)),
+                            sys.exit(EXIT_USAGE))
+    p.error = usage_error(p)
     sub = p.add_subparsers(dest="command", required=True)
     c = sub.add_parser("check", help="recompute the figures of a hit file")
     c.add_argument("asf", help="the .asf the hits were traced through (its triangles are the scene)")
@@ -795,6 +799,7 @@ def main(argv=None):
     r.add_argument("--light", action="append", metavar="X,Y,Z", help="a point light (repeatable; default four)")
     r.add_argument("--offset", type=float, default=1e-4,
                    help="shadow ray origins leave the surface by this fraction of the scene diagonal")
+    c.error, r.error = usage_error(c), usage_error(r)
     args = p.parse_args(argv)
     try:
         if args.command == "check":
