@@ -184,6 +184,17 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
             enter[axis][i] = leave[axis][i] = 0;
         }
     const v4f vlo = v4f_load(nlo), vscale = v4f_load(scale), zero = v4f_set1(0.0f), last = v4f_set1((float)(nb - 1));
+    /* Per axis: +inf in its lane and -inf elsewhere (slab_lo), the opposite
+     * (slab_hi), so that min(set1(lower), slab_lo) is lower on the axis and
+     * leaves the other lanes alone under a max. */
+    v4f slab_lo[3], slab_hi[3];
+    for (int axis = 0; axis < 3; ++axis) {
+        float l[4] = {-INFINITY, -INFINITY, -INFINITY, -INFINITY}, h[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
+        l[axis] = INFINITY;
+        h[axis] = -INFINITY;
+        slab_lo[axis] = v4f_load(l);
+        slab_hi[axis] = v4f_load(h);
+    }
     for (uint32_t i = 0; i < count; ++i) {
         const bvh_ref *r = &refs[i];
         const v4f lo = v4f_load3(r->lo), hi = v4f_load3(r->hi);
@@ -235,17 +246,15 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
                         plo = v4f_min(plo, p[j]);
                         phi = v4f_max(phi, p[j]);
                     }
-                /* Within the reference's box and the part's slab. */
-                plo = v4f_max(plo, lo);
-                phi = v4f_min(phi, hi);
-                float pl[4], ph[4];
-                v4f_store(pl, plo);
-                v4f_store(ph, phi);
-                if (pl[axis] < lower) pl[axis] = lower;
-                if (ph[axis] > upper) ph[axis] = upper;
-                if (!(pl[0] <= ph[0] && pl[1] <= ph[1] && pl[2] <= ph[2])) continue;
-                blo[axis][k] = v4f_min(blo[axis][k], v4f_load(pl));
-                bhi[axis][k] = v4f_max(bhi[axis][k], v4f_load(ph));
+                /* Within the reference's box and the part's slab. The slab
+                 * is clamped in registers (max(lower, x) is "x < lower ?
+                 * lower : x"): a store, a store to one lane and a load of
+                 * all four would stall store forwarding, once per part. */
+                plo = v4f_max(v4f_min(v4f_set1(lower), slab_lo[axis]), v4f_max(plo, lo));
+                phi = v4f_min(v4f_max(v4f_set1(upper), slab_hi[axis]), v4f_min(phi, hi));
+                if ((v4f_le_mask(plo, phi) & 7) != 7) continue;
+                blo[axis][k] = v4f_min(blo[axis][k], plo);
+                bhi[axis][k] = v4f_max(bhi[axis][k], phi);
                 occupied[axis] |= 1u << k;
             }
         }

@@ -35,6 +35,8 @@ static inline void v4f_to_i32(v4f a, int32_t out[4]) { _mm_storeu_si128((__m128i
 /* Bit i set where a[i] < b[i]: a comparison's lanes as an integer, for
  * selecting without branches. */
 static inline int v4f_lt_mask(v4f a, v4f b) { return _mm_movemask_ps(_mm_cmplt_ps(a, b)); }
+/* Bit i set where a[i] <= b[i] (clear where either is NaN). */
+static inline int v4f_le_mask(v4f a, v4f b) { return _mm_movemask_ps(_mm_cmple_ps(a, b)); }
 /* Half the surface area of the box lo..hi (x, y, z lanes) in float, 0 when
  * inverted: dx dy + dy dz + dz dx, the products and sums in that order, so
  * it equals the scalar form bit for bit. In registers: the builders' sweeps
@@ -75,6 +77,12 @@ static inline int v4f_lt_mask(v4f a, v4f b)
 {
     int m = 0;
     for (int i = 0; i < 4; ++i) m |= (a.v[i] < b.v[i]) << i;
+    return m;
+}
+static inline int v4f_le_mask(v4f a, v4f b)
+{
+    int m = 0;
+    for (int i = 0; i < 4; ++i) m |= (a.v[i] <= b.v[i]) << i;
     return m;
 }
 static inline float v4f_half_area(v4f lo, v4f hi)
