@@ -29,6 +29,7 @@
 #define ASF_TAG_GRDH ASF_TAG('G', 'R', 'D', 'H') /* as_grid_header_t, dimensions and box */
 #define ASF_TAG_GRDC ASF_TAG('G', 'R', 'D', 'C') /* uint32_t[cells + 1], cell offsets into PRIM */
 #define ASF_TAG_BVHO ASF_TAG('B', 'V', 'H', 'O') /* as_bvh2o_node_t[], own-bounds layout */
+#define ASF_TAG_CWBV ASF_TAG('C', 'W', 'B', 'V') /* as_cwbvh_node_t[], compressed wide BVH nodes */
 #define ASF_TAG_KDN8 ASF_TAG('K', 'D', 'N', '8') /* as_kd_node_t[], KD nodes (8 bytes) */
 #define ASF_TAG_KDRP ASF_TAG('K', 'D', 'R', 'P') /* as_kd_ropes_t[], six ropes per KD leaf */
 #define ASF_TAG_KDLB ASF_TAG('K', 'D', 'L', 'B') /* as_kd_leaf_box_t[], KD leaf boxes */

@@ -8,7 +8,8 @@
  * inside and outside the bounds, grazing a face, clipped by tmin and tmax)
  * finish without a fault, an endless loop (libFuzzer's -timeout) or a hit
  * outside the ray's interval, for closest and any hit. Where the layout
- * converts (BVH child <-> own bounds, KD with <-> without ropes) the
+ * converts (BVH child <-> own bounds, KD with <-> without ropes; the wide
+ * BVH converts to nothing) the
  * conversion must validate, give identical hits, survive being written and
  * read back, and convert back to a structure with identical hits (the same
  * record, or the same distance on another triangle: a tie, which the order
@@ -16,7 +17,8 @@
  *
  * Which triangle a ray meets first is only defined where every leaf or cell
  * a triangle crosses holds it. Validation proves that for a BVH whose leaf
- * boxes contain their triangles (every builder but SBVH), not for the
+ * boxes contain their triangles (every builder but SBVH; for the wide BVH,
+ * the decoded boxes of the leaf and of every node above it), not for the
  * others, whose leaves and cells need only overlap the triangles they hold
  * (SBVH, KD, BIH, octree, grid): a damaged one may leave part of a triangle
  * in no leaf that holds it, and then the layouts, and closest and any hit,

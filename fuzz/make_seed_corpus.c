@@ -221,6 +221,8 @@ static void structure_seeds(void)
         {"bvh_midcut_own_bounds_zstd", AS_STRUCT_BVH, AS_BUILDER_BVH_MIDCUT, AS_LAYOUT_BVH2_OWN_BOUNDS, 3, 0x02},
         {"bvh_sbvh_child_bounds", AS_STRUCT_BVH, AS_BUILDER_BVH_SBVH, AS_LAYOUT_BVH2_CHILD_BOUNDS, 0, 0x02},
         {"bvh_sbvh_own_bounds", AS_STRUCT_BVH, AS_BUILDER_BVH_SBVH, AS_LAYOUT_BVH2_OWN_BOUNDS, 0, 0x06},
+        {"bvh_sah_cwbvh", AS_STRUCT_BVH, AS_BUILDER_BVH_SAH_BINNED, AS_LAYOUT_BVH_CWBVH, 0, 0x02},
+        {"bvh_sbvh_cwbvh_zstd", AS_STRUCT_BVH, AS_BUILDER_BVH_SBVH, AS_LAYOUT_BVH_CWBVH, 3, 0x06},
         {"kd_sah_standard", AS_STRUCT_KD, AS_BUILDER_KD_SAH, AS_LAYOUT_KD_STANDARD, 0, 0x02},
         {"kd_sah_ropes", AS_STRUCT_KD, AS_BUILDER_KD_SAH, AS_LAYOUT_KD_ROPES, 0, 0x02},
         {"kd_midcut_standard_zstd", AS_STRUCT_KD, AS_BUILDER_KD_MIDCUT, AS_LAYOUT_KD_STANDARD, 19, 0x03},

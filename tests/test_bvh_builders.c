@@ -1,17 +1,19 @@
-/* What the mid-cut, sweep and SBVH builders and the own-bounds layout
- * promise, for one builder and layout per run:
+/* What the mid-cut, sweep and SBVH builders, the own-bounds layout and the
+ * compressed wide BVH promise, for one builder and layout per run:
  *
  *   test_bvh_builders BUILDER LAYOUT
  *
  * byte-identical files for 1, 2 and 3 threads; cancellation; 10,000 copies
  * of one triangle; a flat scene; axis-aligned quads on split planes;
  * validation of damaged copies; the layout round trip (child-bounds ->
- * own-bounds -> child-bounds gives the same bytes, both give the same hits);
+ * own-bounds -> child-bounds gives the same bytes, both give the same hits;
+ * the wide BVH: the same bytes from either binary layout, the same hits);
  * and the SAH cost against the binned build on bunny.drc. */
 #include "reference.h"
 #include "test_util.h"
 #include "structure.h"
 #include "bvh2_own_layout.h"
+#include "cwbvh_layout.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -269,7 +271,46 @@ static void validation_rejects_damaged_copies(void)
     if (!s) { as_mesh_release(m); return; }
     CHECK_EQ_INT(as_structure_validate(s), AS_OK);
     as_structure_t *d;
-    if (s->meta.layout == AS_LAYOUT_BVH2_OWN_BOUNDS) {
+    if (s->meta.layout == AS_LAYOUT_BVH_CWBVH) {
+        as_cwbvh_node_t *n;
+        const uint32_t nn = (uint32_t)s->meta.node_count;
+        /* A leaf slot of a node, and one of its inner slots, to damage. */
+        uint32_t li = 0, ls = 0, is = 0;
+        const as_cwbvh_node_t *sn = s->sections[0].data;
+        for (uint32_t i = 0; i < nn && !li; ++i)
+            for (uint32_t k = 0; k < 8; ++k)
+                if (sn[i].meta[k] && !as_cwbvh_meta_is_inner(sn[i].meta[k]) && sn[i].qhi[0][k] < 200) { li = i; ls = k; break; }
+        while (!((sn[0].imask >> is) & 1)) ++is;
+        CHECK(li > 0);
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[0].child_base = 0;
+        expect_invalid(d, "root is its own child");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[0].child_base += 1;
+        expect_invalid(d, "children shifted by one: a node referenced twice or unreachable");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[0].child_base = nn - 1;
+        expect_invalid(d, "children past the end");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].tri_base = 0x7fffffffu;
+        expect_invalid(d, "leaf past TRI4");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].imask |= (uint8_t)(1u << ls);
+        expect_invalid(d, "imask bit on a leaf slot");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].meta[ls] = (uint8_t)(0xA0u | (n[li].meta[ls] & 31u));
+        expect_invalid(d, "a leaf count that is not unary");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[0].meta[is] = AS_CWBVH_META_INNER((is + 1) % 8);
+        expect_invalid(d, "an inner slot's meta names another slot");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].e[1] = 255;
+        expect_invalid(d, "exponent out of range");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].e[2] = 0;
+        expect_invalid(d, "zero exponent");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].p[1] = NAN;
+        expect_invalid(d, "NaN origin");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].qlo[0][ls] = n[li].qhi[0][ls] = 255;
+        expect_invalid(d, "a leaf's box moved off its triangles");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[0].qlo[0][is] = n[0].qhi[0][is] = 255;
+        expect_invalid(d, "an inner child's box moved off what lies below");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[li].qlo[1][ls] = 200; n[li].qhi[1][ls] = 100;
+        expect_invalid(d, "inverted quantized box");
+        d = damageable_copy(s); n = section_bytes(d, ASF_TAG_CWBV); n[0].e[0] = 254; n[0].p[0] = 3e38f;
+        expect_invalid(d, "decoded box overflows to infinity");
+    } else if (s->meta.layout == AS_LAYOUT_BVH2_OWN_BOUNDS) {
         as_bvh2o_node_t *n;
         d = damageable_copy(s); n = section_bytes(d, ASF_TAG_BVHO); n[0].child = 0;
         expect_invalid(d, "root is its own child");
@@ -383,6 +424,77 @@ static void layouts_convert_both_ways_to_the_same_bytes_and_hits(void)
     as_mesh_release(m);
 }
 
+/* A BVH2 file of either layout collapses into the same wide BVH, which
+ * gives the binary tree's hits; nothing converts back. */
+static void the_wide_bvh_comes_from_either_binary_layout_with_the_same_hits(void)
+{
+    if (variant.layout != AS_LAYOUT_BVH_CWBVH) return;
+    as_mesh_t *m = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
+    CHECK(m != NULL);
+    as_build_args_t args = variant;
+    args.layout = AS_LAYOUT_BVH2_CHILD_BOUNDS;
+    as_structure_t *bin = as_structure_build(m, &args);
+    args.layout = AS_LAYOUT_BVH2_OWN_BOUNDS;
+    as_structure_t *own = as_structure_build(m, &args);
+    CHECK(bin && own);
+    as_structure_t *a = bin ? as_structure_convert(bin, AS_LAYOUT_BVH_CWBVH) : NULL;
+    as_structure_t *b = own ? as_structure_convert(own, AS_LAYOUT_BVH_CWBVH) : NULL;
+    CHECK(a && b);
+    if (a && b) {
+        char pa[512], pb[512];
+        snprintf(pa, sizeof pa, "%s/wide_a.asf", tmpdir);
+        snprintf(pb, sizeof pb, "%s/wide_b.asf", tmpdir);
+        as_save_args_t sa;
+        as_save_args_default(&sa);
+        sa.omit_build_record = true;
+        CHECK_EQ_INT(as_structure_save(a, pa, &sa), AS_OK);
+        CHECK_EQ_INT(as_structure_save(b, pb, &sa), AS_OK);
+        CHECK(test_files_equal(pa, pb));
+        unlink(pa); unlink(pb);
+        CHECK_EQ_INT(as_structure_validate(a), AS_OK);
+        as_clear_error();
+        CHECK(as_structure_convert(a, AS_LAYOUT_BVH2_CHILD_BOUNDS) == NULL);
+        CHECK_EQ_INT(as_get_error(), AS_ERROR_UNSUPPORTED);
+        as_structure_stats_t sb, sw;
+        CHECK_EQ_INT(as_structure_get_stats(bin, &sb), AS_OK);
+        CHECK_EQ_INT(as_structure_get_stats(a, &sw), AS_OK);
+        uint64_t big = 0;
+        for (int k = AS_CWBVH_MAX_LEAF + 1; k < AS_HISTOGRAM_BINS; ++k) big += sw.leaf_size_histogram[k];
+        CHECK_EQ_U64(big, 0);
+        CHECK_EQ_U64(sw.reference_count, sb.reference_count);
+        CHECK(sw.node_count < sb.node_count / 2);
+        fprintf(stderr, "  bunny.drc: BVH2 %llu nodes, %llu leaves, SAH %.3f; wide %llu nodes, %llu leaves, SAH %.3f, "
+                "%.2f children per node\n", (unsigned long long)sb.node_count, (unsigned long long)sb.leaf_count,
+                sb.sah_cost, (unsigned long long)sw.node_count, (unsigned long long)sw.leaf_count, sw.sah_cost,
+                (double)(sw.node_count - 1 + sw.leaf_count) / (double)sw.node_count);
+        const size_t n = 20000;
+        as_ray_t *rays = malloc(sizeof *rays * n);
+        ref_make_scene_rays(m, n, 99, rays);
+        as_hit_t *ha = malloc(sizeof *ha * n), *hb = malloc(sizeof *hb * n);
+        as_trace_args_t ta;
+        as_trace_args_default(&ta);
+        ta.device = AS_DEVICE_CPU;
+        size_t differ = 0;
+        for (int any = 0; any < 2; ++any) {
+            ta.any_hit = any;
+            CHECK_EQ_INT(as_trace(bin, rays, n, ha, &ta, NULL), AS_OK);
+            CHECK_EQ_INT(as_trace(a, rays, n, hb, &ta, NULL), AS_OK);
+            for (size_t i = 0; i < n; ++i) {
+                if (any) differ += (ha[i].prim == AS_NO_HIT) != (hb[i].prim == AS_NO_HIT);
+                else differ += ha[i].prim != hb[i].prim || ha[i].t != hb[i].t;
+            }
+        }
+        fprintf(stderr, "  child-bounds vs cwbvh: %zu rays closest and any hit, %zu differ\n", n, differ);
+        CHECK_EQ_U64(differ, 0);
+        free(rays); free(ha); free(hb);
+    }
+    as_structure_release(a);
+    as_structure_release(b);
+    as_structure_release(bin);
+    as_structure_release(own);
+    as_mesh_release(m);
+}
+
 static void sah_cost_is_printed_against_the_binned_build(void)
 {
     as_mesh_t *m = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
@@ -427,6 +539,7 @@ int main(int argc, char **argv)
     RUN_TEST(quads_on_split_planes_are_hit_by_crossing_rays);
     RUN_TEST(validation_rejects_damaged_copies);
     RUN_TEST(layouts_convert_both_ways_to_the_same_bytes_and_hits);
+    RUN_TEST(the_wide_bvh_comes_from_either_binary_layout_with_the_same_hits);
     RUN_TEST(sah_cost_is_printed_against_the_binned_build);
     rmdir(tmpdir);
     TEST_EXIT();

@@ -17,6 +17,7 @@ static void usage(void)
            "      --decompress        store every section raw (the default)\n"
            "      --layout NAME       convert to another layout of the same structure:\n"
            "                          bvh2-child-bounds <-> bvh2-own-bounds,\n"
+           "                          bvh2-* -> cwbvh (one way: its boxes are quantized),\n"
            "                          kd-standard <-> kd-ropes (adds or removes ropes)\n"
            "  -h, --help              this help\n"
            "  -V, --version           the version\n\n"

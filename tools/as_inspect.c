@@ -101,6 +101,11 @@ int main(int argc, char **argv)
     }
     const uint32_t nsec = as_structure_section_count(s);
     const double bpt = st.triangle_count ? (double)st.structure_bytes / st.triangle_count : 0.0;
+    /* In a tree every node but the root is one inner node's child: the
+     * width a node fetch serves (2 for a BVH2, up to 8 for the wide BVH). */
+    const double fanout = st.node_count ? (double)(st.node_count - 1 + st.leaf_count + st.empty_leaf_count) /
+                                              (double)st.node_count
+                                        : 0.0;
     if (json) {
         printf("{\n  \"file\": ");
         tool_print_json_string(path);
@@ -138,9 +143,10 @@ int main(int argc, char **argv)
                (double)st.bounds_lo[2], (double)st.bounds_hi[0], (double)st.bounds_hi[1], (double)st.bounds_hi[2]);
         printf("  \"triangles\": %u,\n  \"bytes\": %llu,\n  \"megabytes\": %.6f,\n  \"bytes_per_triangle\": %.3f,\n",
                st.triangle_count, (unsigned long long)st.structure_bytes, (double)st.structure_bytes / 1e6, bpt);
-        printf("  \"nodes\": %llu,\n  \"leaves\": %llu,\n  \"empty_leaves\": %llu,\n  \"references\": %llu,\n"
+        printf("  \"nodes\": %llu,\n  \"children_per_node\": %.4f,\n  \"leaves\": %llu,\n  \"empty_leaves\": %llu,\n"
+               "  \"references\": %llu,\n"
                "  \"average_leaf_size\": %.4f,\n  \"max_depth\": %u,\n  \"average_leaf_depth\": %.4f,\n",
-               (unsigned long long)st.node_count, (unsigned long long)st.leaf_count,
+               (unsigned long long)st.node_count, fanout, (unsigned long long)st.leaf_count,
                (unsigned long long)st.empty_leaf_count, (unsigned long long)st.reference_count, st.average_leaf_size,
                st.max_depth, st.average_leaf_depth);
         printf("  \"grid_dims\": [%u, %u, %u],\n", st.grid_dims[0], st.grid_dims[1], st.grid_dims[2]);
@@ -166,8 +172,8 @@ int main(int argc, char **argv)
         }
         printf("triangles:   %u\n", st.triangle_count);
         printf("memory:      %.3f MB, %.1f bytes per triangle\n", (double)st.structure_bytes / 1e6, bpt);
-        printf("nodes:       %llu inner, %llu leaves\n", (unsigned long long)st.node_count,
-               (unsigned long long)st.leaf_count);
+        printf("nodes:       %llu inner, %llu leaves, %.2f children per inner node\n", (unsigned long long)st.node_count,
+               (unsigned long long)st.leaf_count, fanout);
         printf("leaves:      %llu empty, %llu references, %.2f per leaf\n", (unsigned long long)st.empty_leaf_count,
                (unsigned long long)st.reference_count, st.average_leaf_size);
         if (st.grid_dims[0])

@@ -2,6 +2,7 @@
  * GPU traversals (both run kernels/bvh2_traverse.h). */
 #include "structure.h"
 #include "bvh2_traverse.h"
+#include "cwbvh_layout.h"
 #include "trace_gpu.h"
 
 #include <stdlib.h>
@@ -80,6 +81,7 @@ static void bvh2_trace_cpu(const as_structure_t *s, const as_ray_t *rays, as_hit
 static as_error_t bvh2_convert(const as_structure_t *src, uint32_t target, as_structure_t *dst)
 {
     if (target == AS_LAYOUT_BVH2_OWN_BOUNDS) return as_bvh2_to_own_bounds(src, dst);
+    if (target == AS_LAYOUT_BVH_CWBVH) return as_bvh2_to_cwbvh(src, AS_CWBVH_MAX_LEAF, dst);
     if (target == AS_LAYOUT_BVH2_CHILD_BOUNDS) {
         /* Same layout: a copy. */
         const as_section_t *ns = as_structure_find(src, ASF_TAG_BVH2), *ts = as_structure_find(src, ASF_TAG_TRI4);
@@ -93,7 +95,7 @@ static as_error_t bvh2_convert(const as_structure_t *src, uint32_t target, as_st
         as_structure_add_section(dst, ASF_TAG_TRI4, t, ts->count, sizeof(as_tri4_t));
         return AS_OK;
     }
-    return as_set_error(AS_ERROR_UNSUPPORTED, "a BVH converts only to bvh2-child-bounds or bvh2-own-bounds");
+    return as_set_error(AS_ERROR_UNSUPPORTED, "a BVH2 converts only to bvh2-child-bounds, bvh2-own-bounds or cwbvh");
 }
 
 

@@ -3,6 +3,7 @@
  * layouts, which keep the tree, the leaves and TRI4 exactly. */
 #include "structure.h"
 #include "bvh2_own_traverse.h"
+#include "cwbvh_layout.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -195,6 +196,15 @@ as_error_t as_bvh2_own_to_child_bounds(const as_structure_t *src, as_structure_t
 static as_error_t own_convert(const as_structure_t *src, uint32_t target, as_structure_t *dst)
 {
     if (target == AS_LAYOUT_BVH2_CHILD_BOUNDS) return as_bvh2_own_to_child_bounds(src, dst);
+    if (target == AS_LAYOUT_BVH_CWBVH) {
+        /* Through the child-bounds tree, which the collapse reads. */
+        as_structure_t cb;
+        memset(&cb, 0, sizeof cb);
+        as_error_t err = as_bvh2_own_to_child_bounds(src, &cb);
+        if (err == AS_OK) err = as_bvh2_to_cwbvh(&cb, AS_CWBVH_MAX_LEAF, dst);
+        for (uint32_t i = 0; i < cb.section_count; ++i) free(cb.sections[i].owned);
+        return err;
+    }
     if (target == AS_LAYOUT_BVH2_OWN_BOUNDS) {
         /* Same layout: a copy. */
         const as_section_t *ns = as_structure_find(src, ASF_TAG_BVHO), *ts = as_structure_find(src, ASF_TAG_TRI4);
@@ -205,7 +215,7 @@ static as_error_t own_convert(const as_structure_t *src, uint32_t target, as_str
         as_structure_add_section(dst, ASF_TAG_TRI4, t, ts->count, sizeof(as_tri4_t));
         return AS_OK;
     }
-    return as_set_error(AS_ERROR_UNSUPPORTED, "a BVH converts only to bvh2-child-bounds or bvh2-own-bounds");
+    return as_set_error(AS_ERROR_UNSUPPORTED, "a BVH2 converts only to bvh2-child-bounds, bvh2-own-bounds or cwbvh");
 }
 
 const as_layout_ops_t as_layout_bvh2_own_bounds = {

@@ -9,11 +9,16 @@
  * (TRI4 = N entries), the SBVH at most split_budget x N (its reference
  * budget); a binary tree whose leaves hold at least one reference has at
  * most references - 1 inner nodes, and a one-leaf tree still has its root
- * (the empty sibling); the own-bounds layout stores 1 + 2 x inner nodes. */
+ * (the empty sibling); the own-bounds layout stores 1 + 2 x inner nodes.
+ * The compressed wide BVH (cwbvh_build.c) collapses a binary tree built
+ * with one triangle per leaf: TRI4 as that tree's, and at most one wide
+ * node per reference (every wide node but a lone root has two children or
+ * more, every leaf a triangle or more). */
 #include "structure.h"
 #include "mesh.h"
 #include "bvh_build_common.h"
 #include "bvh2_own_layout.h"
+#include "cwbvh_layout.h"
 #include "kd_layout.h"
 #include "bih_layout.h"
 #include "octree_layout.h"
@@ -31,8 +36,10 @@ static as_error_t estimate_bvh(const as_mesh_t *mesh, as_build_args_t args, as_m
 {
     const as_builder_t builder = args.builder == AS_BUILDER_DEFAULT ? AS_BUILDER_BVH_SAH_BINNED : args.builder;
     const as_layout_t layout = args.layout == AS_LAYOUT_DEFAULT ? AS_LAYOUT_BVH2_CHILD_BOUNDS : args.layout;
-    if (layout != AS_LAYOUT_BVH2_CHILD_BOUNDS && layout != AS_LAYOUT_BVH2_OWN_BOUNDS)
+    if (layout != AS_LAYOUT_BVH2_CHILD_BOUNDS && layout != AS_LAYOUT_BVH2_OWN_BOUNDS && layout != AS_LAYOUT_BVH_CWBVH)
         return as_set_error(AS_ERROR_UNSUPPORTED, "layout 0x%04x is not a BVH layout", (unsigned)layout);
+    const int wide = layout == AS_LAYOUT_BVH_CWBVH;
+    if (wide) args.max_leaf_size = 1;
     if (builder != AS_BUILDER_BVH_SAH_BINNED && builder != AS_BUILDER_BVH_SAH_SWEEP &&
         builder != AS_BUILDER_BVH_MIDCUT && builder != AS_BUILDER_BVH_SBVH)
         return as_set_error(AS_ERROR_UNSUPPORTED, "builder 0x%04x is not a BVH builder", (unsigned)builder);
@@ -50,8 +57,10 @@ static as_error_t estimate_bvh(const as_mesh_t *mesh, as_build_args_t args, as_m
     if (factor > 15.0) factor = 15.0;
     const uint64_t refs_max = n + (uint64_t)floor(factor * (double)n);
     const uint64_t inner_max = inner_nodes_max(refs_max);
-    const uint64_t node_bytes = layout == AS_LAYOUT_BVH2_CHILD_BOUNDS ? sizeof(as_bvh2_node_t) * inner_max
-                                                                      : sizeof(as_bvh2o_node_t) * (1 + 2 * inner_max);
+    const uint64_t bin_node_bytes = sizeof(as_bvh2_node_t) * inner_max;
+    const uint64_t node_bytes = wide ? sizeof(as_cwbvh_node_t) * (refs_max ? refs_max : 1)
+                                : layout == AS_LAYOUT_BVH2_CHILD_BOUNDS ? bin_node_bytes
+                                                                        : sizeof(as_bvh2o_node_t) * (1 + 2 * inner_max);
     out->structure_bytes_max = sizeof(as_meta_t) + node_bytes + sizeof(as_tri4_t) * refs_max;
 
     /* Typical: leaves half full on average, a quarter more references for
@@ -61,10 +70,13 @@ static as_error_t estimate_bvh(const as_mesh_t *mesh, as_build_args_t args, as_m
     const double leaf_fill = args.max_leaf_size > 1 ? 0.5 * (args.max_leaf_size + 1) : 1.0;
     const uint64_t leaves_typ = (uint64_t)ceil((double)refs_typ / leaf_fill);
     const uint64_t inner_typ = inner_nodes_max(leaves_typ + 1);
+    /* Wide: about one node per eight references (0.12 on the staircase,
+     * leaves of 1.35 triangles and 6.3 leaves per node). */
     out->structure_bytes_typical =
         sizeof(as_meta_t) + sizeof(as_tri4_t) * refs_typ +
-        (layout == AS_LAYOUT_BVH2_CHILD_BOUNDS ? sizeof(as_bvh2_node_t) * inner_typ
-                                               : sizeof(as_bvh2o_node_t) * (1 + 2 * inner_typ));
+        (wide ? sizeof(as_cwbvh_node_t) * (uint64_t)fmax(1.0, ceil(0.12 * (double)refs_typ))
+              : layout == AS_LAYOUT_BVH2_CHILD_BOUNDS ? sizeof(as_bvh2_node_t) * inner_typ
+                                                      : sizeof(as_bvh2o_node_t) * (1 + 2 * inner_typ));
 
     /* Working memory, from the allocations of bvh_builder_init and the
      * builders: the references (one bvh_ref each) and the temporary tree
@@ -78,6 +90,10 @@ static as_error_t estimate_bvh(const as_mesh_t *mesh, as_build_args_t args, as_m
     uint64_t peak = sizeof(bvh_ref) * (n ? n : 1) + sizeof(bvh_tmp_node) * (2 * refs_max + 3) + out->structure_bytes_max;
     if (builder == AS_BUILDER_BVH_SAH_SWEEP) peak += (3 * 12 + 8 + sizeof(bvh_ref)) * n;
     if (sbvh) peak += sizeof(bvh_ref) * refs_max * 3;
+    /* The collapse: the binary tree it reads (kept until it is done), its
+     * own copy with costs and choices (81 bytes a node, up to two per
+     * binary node and two per reference), and its output. */
+    if (wide) peak += bin_node_bytes + sizeof(as_tri4_t) * refs_max + 81 * (2 * inner_max + 2 * refs_max + 2);
     out->build_peak_bytes = peak;
     return AS_OK;
 }

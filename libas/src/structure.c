@@ -115,6 +115,7 @@ static const struct { uint32_t value; const char *name; } kind_names[] = {
     {AS_STRUCT_OCTREE, "octree"}, {AS_STRUCT_GRID, "grid"},
 }, layout_names[] = {
     {AS_LAYOUT_BVH2_CHILD_BOUNDS, "bvh2-child-bounds"}, {AS_LAYOUT_BVH2_OWN_BOUNDS, "bvh2-own-bounds"},
+    {AS_LAYOUT_BVH_CWBVH, "cwbvh"},
     {AS_LAYOUT_KD_STANDARD, "kd-standard"}, {AS_LAYOUT_KD_ROPES, "kd-ropes"}, {AS_LAYOUT_BIH, "bih"},
     {AS_LAYOUT_OCTREE, "octree"}, {AS_LAYOUT_GRID, "grid"},
 }, builder_names[] = {
@@ -164,7 +165,10 @@ as_structure_t *as_structure_build(const as_mesh_t *mesh, const as_build_args_t 
                            as_structure_kind_name(args.structure) ? as_structure_kind_name(args.structure) : "unknown");
     } else {
         if (args.layout == AS_LAYOUT_DEFAULT) args.layout = (as_layout_t)b->default_layout;
-        err = b->build(mesh, &args, s);
+        if (args.structure == AS_STRUCT_BVH && args.layout == AS_LAYOUT_BVH_CWBVH)
+            err = as_cwbvh_build(mesh, &args, b->build, s);
+        else
+            err = b->build(mesh, &args, s);
         if (err == AS_OK) {
             memset(&s->record, 0, sizeof s->record);
             s->record.build_ms = s->build_ms;
@@ -216,6 +220,7 @@ as_error_t as_structure_save(const as_structure_t *s, const char *path, const as
 static const as_layout_ops_t *const layouts[] = {
     &as_layout_bvh2_child_bounds,
     &as_layout_bvh2_own_bounds,
+    &as_layout_cwbvh,
     &as_layout_kd_standard,
     &as_layout_kd_ropes,
     &as_layout_bih,

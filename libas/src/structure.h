@@ -145,6 +145,7 @@ const as_layout_ops_t *as_structure_ops(const as_structure_t *s);
 
 extern const as_layout_ops_t as_layout_bvh2_child_bounds;
 extern const as_layout_ops_t as_layout_bvh2_own_bounds;
+extern const as_layout_ops_t as_layout_cwbvh;
 
 /* The trace_gpu of every layout with a CUDA kernel: launches the kernel of
  * s->meta.layout over the resident sections. */
@@ -198,6 +199,18 @@ as_error_t as_bvh2_to_own_bounds(const as_structure_t *src, as_structure_t *dst)
 as_error_t as_bvh2_own_to_child_bounds(const as_structure_t *src, as_structure_t *dst);
 as_error_t as_bvh2_own_validate(const as_structure_t *s, const char *name);
 as_error_t as_bvh2_own_validate_gpu(const as_structure_t *s, const char *name);
+
+/* The compressed wide BVH (cwbvh_build.c): collapses a child-bounds BVH2
+ * into `dst` (zeroed), leaves of at most leaf_max (1..3) triangles; META
+ * as the source's but for the layout and the counts. as_cwbvh_build runs
+ * `build` (a BVH2 builder) with one triangle per leaf, then collapses. */
+as_error_t as_bvh2_to_cwbvh(const as_structure_t *src, uint32_t leaf_max, as_structure_t *dst);
+as_error_t as_cwbvh_build(const as_mesh_t *mesh, const as_build_args_t *args,
+                          as_error_t (*build)(const as_mesh_t *, const as_build_args_t *, as_structure_t *),
+                          as_structure_t *s);
+as_error_t as_cwbvh_validate(const as_structure_t *s, const char *name);
+/* SAH cost over the decoded boxes (cwbvh_layout_ops.c). */
+double as_cwbvh_sah_cost(const as_structure_t *s);
 
 /* BIH, octree and uniform grid: builders, validators, SAH costs (from the
  * stored structure; `st` may be NULL, else its counts and histograms are

@@ -22,7 +22,7 @@ missing=$(python3 - "$J" <<'PY'
 import json, sys
 j = json.load(open(sys.argv[1]))
 need = {"sections": list, "megabytes": float, "bytes": int, "bytes_per_triangle": float, "triangles": int,
-        "nodes": int, "leaves": int, "max_depth": int, "average_leaf_depth": float,
+        "nodes": int, "children_per_node": float, "leaves": int, "max_depth": int, "average_leaf_depth": float,
         "depth_histogram": list, "leaf_size_histogram": list, "sah_cost": float, "build": dict,
         "structure": str, "layout": str, "layout_version": int, "writer": str, "source_hash": str, "bounds": list}
 bad = [k for k, t in need.items() if not isinstance(j.get(k), t)]
@@ -70,7 +70,8 @@ done
 expect_grep "text build time as recorded" "$T" "^build time: +$(json_get "$J" '"%.1f" % j["build"]["build_ms"]') ms on $(json_get "$J" 'j["build"]["threads"]') threads \\($(json_get "$J" 'j["build"]["cores"]') cores\\), as recorded in the file$"
 expect_grep "text triangles" "$T" "^triangles: +$(json_get "$J" 'j["triangles"]')$"
 expect_grep "text memory" "$T" "^memory: +$(json_get "$J" '"%.3f" % j["megabytes"]') MB, $(json_get "$J" '"%.1f" % j["bytes_per_triangle"]') bytes per triangle$"
-expect_grep "text nodes and leaves" "$T" "^nodes: +$(json_get "$J" 'j["nodes"]') inner, $(json_get "$J" 'j["leaves"]') leaves$"
+expect_grep "text nodes, leaves and children per node" "$T" "^nodes: +$(json_get "$J" 'j["nodes"]') inner, $(json_get "$J" 'j["leaves"]') leaves, $(json_get "$J" '"%.2f" % j["children_per_node"]') children per inner node$"
+expect_eq "json children per node of a binary tree" "2.0000" "$(json_get "$J" '"%.4f" % j["children_per_node"]')"
 expect_grep "text depth" "$T" "^depth: +max $(json_get "$J" 'j["max_depth"]'), average leaf depth $(json_get "$J" '"%.2f" % j["average_leaf_depth"]')$"
 expect_grep "text SAH cost" "$T" "^SAH cost: +$(json_get "$J" '"%.3f" % j["sah_cost"]') \\(ratio 1.00\\/1: traversal 1, intersection 1\\)$"
 expect_grep "text build parameters" "$T" "^build: +sah, leaf size 4, bins 32$"

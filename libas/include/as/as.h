@@ -139,6 +139,10 @@ typedef enum as_layout {
     AS_LAYOUT_BVH2_CHILD_BOUNDS = 0x0101,
     /* The classic binary BVH: every node stores its own box. */
     AS_LAYOUT_BVH2_OWN_BOUNDS = 0x0102,
+    /* The compressed wide BVH (Ylitie, Karras & Laine 2017): 8-wide nodes
+     * of 80 bytes with child boxes quantized to 8 bits, collapsed from a
+     * binary tree; triangles as in the child-bounds layout. */
+    AS_LAYOUT_BVH_CWBVH = 0x0103,
     /* KD tree, 8-byte nodes, traversed with a stack of node and tmax. */
     AS_LAYOUT_KD_STANDARD = 0x0201,
     /* The same tree plus six ropes and a box per leaf, traversed stacklessly. */
@@ -286,8 +290,9 @@ as_structure_t *as_structure_load_memory(const void *data, size_t size, const ch
 void as_structure_release(as_structure_t *s);
 
 /* A new structure with the same tree in another layout of its kind: the
- * BVH's child-bounds and own-bounds layouts either way, a KD tree with or
- * without ropes. Fails with AS_ERROR_UNSUPPORTED for any other pair. The
+ * BVH's child-bounds and own-bounds layouts either way, either of them into
+ * the compressed wide BVH (collapsed, leaves of up to 3 triangles; there is
+ * no way back), a KD tree with or without ropes. Fails with AS_ERROR_UNSUPPORTED for any other pair. The
  * source is validated first. */
 as_structure_t *as_structure_convert(const as_structure_t *s, as_layout_t layout);
 
