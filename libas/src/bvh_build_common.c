@@ -18,7 +18,7 @@ typedef struct init_job {
     bvh_builder *b;
     unsigned chunks;
     uint32_t count[256], offset[256];
-    bvh_box box[256];
+    bvh_box box[256], cbox[256];
 } init_job;
 
 static void chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first, uint32_t *end)
@@ -43,7 +43,7 @@ static void init_fill(void *user, unsigned c, unsigned n)
     const as_mesh_t *mesh = job->b->mesh;
     uint32_t first, end, k = job->offset[c];
     chunk_range(mesh->triangle_count, c, n, &first, &end);
-    bvh_box box = bvh_box_empty();
+    bvh_box box = bvh_box_empty(), cbox = bvh_box_empty();
     for (uint32_t i = first; i < end; ++i) {
         if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
         bvh_ref *r = &job->b->refs[k++];
@@ -58,8 +58,11 @@ static void init_fill(void *user, unsigned c, unsigned n)
         r->id = i;
         r->pad = 0.0f;
         bvh_box_grow(&box, bx.lo, bx.hi);
+        const float c2[3] = {bx.lo[0] + bx.hi[0], bx.lo[1] + bx.hi[1], bx.lo[2] + bx.hi[2]};
+        bvh_box_grow(&cbox, c2, c2);
     }
     job->box[c] = box;
+    job->cbox[c] = cbox;
 }
 
 as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_build_args_t *args,
@@ -110,8 +113,11 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
         return as_get_error();
     }
     as_parallel_run(job.chunks, init_fill, &job);
-    b->root_box = bvh_box_empty();
-    for (unsigned c = 0; c < job.chunks; ++c) bvh_box_grow(&b->root_box, job.box[c].lo, job.box[c].hi);
+    b->root_box = b->root_cbox = bvh_box_empty();
+    for (unsigned c = 0; c < job.chunks; ++c) {
+        bvh_box_grow(&b->root_box, job.box[c].lo, job.box[c].hi);
+        bvh_box_grow(&b->root_cbox, job.cbox[c].lo, job.cbox[c].hi);
+    }
     return AS_OK;
 }
 
@@ -228,88 +234,140 @@ int bvh_sweep_bins(const v4f *lo, const v4f *hi, const uint32_t *enter, const ui
     return found;
 }
 
-bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t nb)
+/* Object bins of all three axes. */
+typedef struct obj_bins {
+    v4f lo[3][BVH_MAX_BINS], hi[3][BVH_MAX_BINS];
+    uint32_t n[3][BVH_MAX_BINS];
+} obj_bins;
+
+/* Bins refs[0, count) into every bin of `out`: two sets of bins, even
+ * references into one and odd into the other, so that neighbours in the
+ * same bin (meshes are coherent) do not wait on each other's stores. Every
+ * bin ends as the exact min, max and count of its references, whatever the
+ * order or grouping they were binned in, so chunks binned apart and merged
+ * give the bins of one pass. */
+static void bin_all(const bvh_ref *refs, uint32_t count, v4f vcmin, v4f vscale, v4f last, uint32_t nb, obj_bins *out)
 {
-    bvh_object_split best;
-    memset(&best, 0, sizeof best);
-    best.axis = -1;
-    best.cost = INFINITY;
-    best.bin_count = nb;
-    int use[3];
-    float cmin[4] = {0, 0, 0, 0}, scale[4] = {0, 0, 0, 0};
+    const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY);
+    v4f blo2[3][BVH_MAX_BINS], bhi2[3][BVH_MAX_BINS];
+    uint32_t bn2[3][BVH_MAX_BINS];
+    for (int axis = 0; axis < 3; ++axis)
+        for (uint32_t x = 0; x < nb; ++x) {
+            out->lo[axis][x] = blo2[axis][x] = empty_lo;
+            out->hi[axis][x] = bhi2[axis][x] = empty_hi;
+            out->n[axis][x] = bn2[axis][x] = 0;
+        }
+    uint32_t i = 0;
+    for (; i + 1 < count; i += 2) {
+        const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
+        const v4f lo1 = v4f_load3(refs[i + 1].lo), hi1 = v4f_load3(refs[i + 1].hi);
+        int32_t k0[4], k1[4];
+        bin_of(lo0, hi0, vcmin, vscale, last, k0);
+        bin_of(lo1, hi1, vcmin, vscale, last, k1);
+        for (int axis = 0; axis < 3; ++axis) {
+            const int32_t x0 = k0[axis], x1 = k1[axis];
+            out->lo[axis][x0] = v4f_min(out->lo[axis][x0], lo0);
+            out->hi[axis][x0] = v4f_max(out->hi[axis][x0], hi0);
+            out->n[axis][x0]++;
+            blo2[axis][x1] = v4f_min(blo2[axis][x1], lo1);
+            bhi2[axis][x1] = v4f_max(bhi2[axis][x1], hi1);
+            bn2[axis][x1]++;
+        }
+    }
+    if (i < count) {
+        const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
+        int32_t k0[4];
+        bin_of(lo0, hi0, vcmin, vscale, last, k0);
+        for (int axis = 0; axis < 3; ++axis) {
+            out->lo[axis][k0[axis]] = v4f_min(out->lo[axis][k0[axis]], lo0);
+            out->hi[axis][k0[axis]] = v4f_max(out->hi[axis][k0[axis]], hi0);
+            out->n[axis][k0[axis]]++;
+        }
+    }
+    for (int axis = 0; axis < 3; ++axis)
+        for (uint32_t x = 0; x < nb; ++x) {
+            out->lo[axis][x] = v4f_min(out->lo[axis][x], blo2[axis][x]);
+            out->hi[axis][x] = v4f_max(out->hi[axis][x], bhi2[axis][x]);
+            out->n[axis][x] += bn2[axis][x];
+        }
+}
+
+/* The binning's frame for a node whose doubled centroid box is cb2: per
+ * axis the lowest lo + hi and the scale to bins; 0 when no axis can be
+ * binned (every centroid coincides). */
+static int object_frame(const bvh_box *cb2, uint32_t nb, bvh_object_split *best, int use[3])
+{
+    memset(best, 0, sizeof *best);
+    best->axis = -1;
+    best->cost = INFINITY;
+    best->bin_count = nb;
     for (int axis = 0; axis < 3; ++axis) {
         const float extent = cb2->hi[axis] - cb2->lo[axis];
         use[axis] = extent > 0.0f;
-        cmin[axis] = cb2->lo[axis];
-        scale[axis] = use[axis] ? (float)nb / extent : 0.0f;
+        best->cmin[axis] = cb2->lo[axis];
+        best->scale[axis] = use[axis] ? (float)nb / extent : 0.0f;
         /* An extent so small that the scale overflows cannot be binned. */
-        if (!isfinite(scale[axis])) {
+        if (!isfinite(best->scale[axis])) {
             use[axis] = 0;
-            scale[axis] = 0.0f;
+            best->scale[axis] = 0.0f;
         }
-        best.cmin[axis] = cmin[axis];
-        best.scale[axis] = scale[axis];
     }
-    if (!use[0] && !use[1] && !use[2]) return best;
+    return use[0] || use[1] || use[2];
+}
 
-    /* One pass over the references bins all three axes. */
-    v4f blo[3][BVH_MAX_BINS], bhi[3][BVH_MAX_BINS];
-    uint32_t bn[3][BVH_MAX_BINS];
+/* Sweeps the occupied bins only: a plane between two empty bins splits
+ * like the plane after the last occupied bin on its left. */
+static void sweep_object_bins(const obj_bins *bins, const uint64_t occupied[3][BVH_MAX_BINS / 64], const int use[3],
+                              uint32_t nb, bvh_object_split *best)
+{
+    for (int axis = 0; axis < 3; ++axis) {
+        if (!use[axis]) continue;
+        uint32_t occ[BVH_MAX_BINS], m = 0;
+        for (uint32_t w = 0; w < (nb + 63) / 64; ++w)
+            for (uint64_t bits = occupied[axis][w]; bits; bits &= bits - 1)
+                occ[m++] = 64 * w + (uint32_t)__builtin_ctzll(bits);
+        bvh_bin_sweep sw;
+        if (!bvh_sweep_bins(bins->lo[axis], bins->hi[axis], bins->n[axis], bins->n[axis], nb, 1, occ, m, best->cost, &sw))
+            continue;
+        best->axis = axis;
+        best->bin = (int)sw.bin;
+        best->limit = (float)(sw.bin + 1);
+        best->cost = sw.cost;
+        best->left = sw.left;
+        best->right = sw.right;
+        best->left_count = sw.left_count;
+        best->right_count = sw.right_count;
+    }
+}
+
+static void occupied_from_counts(const obj_bins *bins, uint32_t nb, uint64_t occupied[3][BVH_MAX_BINS / 64])
+{
+    memset(occupied, 0, sizeof(uint64_t) * 3 * (BVH_MAX_BINS / 64));
+    for (int axis = 0; axis < 3; ++axis)
+        for (uint32_t x = 0; x < nb; ++x)
+            if (bins->n[axis][x]) occupied[axis][x >> 6] |= (uint64_t)1 << (x & 63);
+}
+
+bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t nb)
+{
+    bvh_object_split best;
+    int use[3];
+    if (!object_frame(cb2, nb, &best, use)) return best;
+    obj_bins bins;
     uint64_t occupied[3][BVH_MAX_BINS / 64];
-    memset(occupied, 0, sizeof occupied);
-    const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY);
+    const float cmin[4] = {best.cmin[0], best.cmin[1], best.cmin[2], 0.0f};
+    const float scale[4] = {best.scale[0], best.scale[1], best.scale[2], 0.0f};
     const v4f vcmin = v4f_load(cmin), vscale = v4f_load(scale), last = v4f_set1((float)(nb - 1));
     if (count >= 4 * nb) {
-        /* Large node: two sets of bins, even references into one and odd
-         * into the other, so that neighbours in the same bin (meshes are
-         * coherent) do not wait on each other's stores. */
-        v4f blo2[3][BVH_MAX_BINS], bhi2[3][BVH_MAX_BINS];
-        uint32_t bn2[3][BVH_MAX_BINS];
-        for (int axis = 0; axis < 3; ++axis)
-            for (uint32_t x = 0; x < nb; ++x) {
-                blo[axis][x] = blo2[axis][x] = empty_lo;
-                bhi[axis][x] = bhi2[axis][x] = empty_hi;
-                bn[axis][x] = bn2[axis][x] = 0;
-            }
-        uint32_t i = 0;
-        for (; i + 1 < count; i += 2) {
-            const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
-            const v4f lo1 = v4f_load3(refs[i + 1].lo), hi1 = v4f_load3(refs[i + 1].hi);
-            int32_t k0[4], k1[4];
-            bin_of(lo0, hi0, vcmin, vscale, last, k0);
-            bin_of(lo1, hi1, vcmin, vscale, last, k1);
-            for (int axis = 0; axis < 3; ++axis) {
-                const int32_t x0 = k0[axis], x1 = k1[axis];
-                blo[axis][x0] = v4f_min(blo[axis][x0], lo0);
-                bhi[axis][x0] = v4f_max(bhi[axis][x0], hi0);
-                bn[axis][x0]++;
-                blo2[axis][x1] = v4f_min(blo2[axis][x1], lo1);
-                bhi2[axis][x1] = v4f_max(bhi2[axis][x1], hi1);
-                bn2[axis][x1]++;
-            }
-        }
-        if (i < count) {
-            const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
-            int32_t k0[4];
-            bin_of(lo0, hi0, vcmin, vscale, last, k0);
-            for (int axis = 0; axis < 3; ++axis) {
-                blo[axis][k0[axis]] = v4f_min(blo[axis][k0[axis]], lo0);
-                bhi[axis][k0[axis]] = v4f_max(bhi[axis][k0[axis]], hi0);
-                bn[axis][k0[axis]]++;
-            }
-        }
-        for (int axis = 0; axis < 3; ++axis)
-            for (uint32_t x = 0; x < nb; ++x) {
-                blo[axis][x] = v4f_min(blo[axis][x], blo2[axis][x]);
-                bhi[axis][x] = v4f_max(bhi[axis][x], bhi2[axis][x]);
-                bn[axis][x] += bn2[axis][x];
-                if (bn[axis][x]) occupied[axis][x >> 6] |= (uint64_t)1 << (x & 63);
-            }
+        bin_all(refs, count, vcmin, vscale, last, nb, &bins);
+        occupied_from_counts(&bins, nb, occupied);
     } else {
         /* Small node: only the bins its references fall in are set up, in
          * a first pass that remembers the bins, so the node costs what its
          * references cost, not what the bins do, and no branch depends on
          * the data. */
+        const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY);
+        memset(occupied, 0, sizeof occupied);
         uint8_t kk[4 * BVH_MAX_BINS][3];
         for (uint32_t i = 0; i < count; ++i) {
             const v4f lo = v4f_load3(refs[i].lo), hi = v4f_load3(refs[i].hi);
@@ -319,41 +377,70 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
                 const int32_t x = k[axis];
                 kk[i][axis] = (uint8_t)x;
                 occupied[axis][x >> 6] |= (uint64_t)1 << (x & 63);
-                blo[axis][x] = empty_lo;
-                bhi[axis][x] = empty_hi;
-                bn[axis][x] = 0;
+                bins.lo[axis][x] = empty_lo;
+                bins.hi[axis][x] = empty_hi;
+                bins.n[axis][x] = 0;
             }
         }
         for (uint32_t i = 0; i < count; ++i) {
             const v4f lo = v4f_load3(refs[i].lo), hi = v4f_load3(refs[i].hi);
             for (int axis = 0; axis < 3; ++axis) {
                 const uint32_t x = kk[i][axis];
-                blo[axis][x] = v4f_min(blo[axis][x], lo);
-                bhi[axis][x] = v4f_max(bhi[axis][x], hi);
-                bn[axis][x]++;
+                bins.lo[axis][x] = v4f_min(bins.lo[axis][x], lo);
+                bins.hi[axis][x] = v4f_max(bins.hi[axis][x], hi);
+                bins.n[axis][x]++;
             }
         }
     }
+    sweep_object_bins(&bins, occupied, use, nb, &best);
+    return best;
+}
 
-    /* Sweep the occupied bins only: a plane between two empty bins splits
-     * like the plane after the last occupied bin on its left. */
-    for (int axis = 0; axis < 3; ++axis) {
-        if (!use[axis]) continue;
-        uint32_t occ[BVH_MAX_BINS], m = 0;
-        for (uint32_t w = 0; w < (nb + 63) / 64; ++w)
-            for (uint64_t bits = occupied[axis][w]; bits; bits &= bits - 1)
-                occ[m++] = 64 * w + (uint32_t)__builtin_ctzll(bits);
-        bvh_bin_sweep sw;
-        if (!bvh_sweep_bins(blo[axis], bhi[axis], bn[axis], bn[axis], nb, 1, occ, m, best.cost, &sw)) continue;
-        best.axis = axis;
-        best.bin = (int)sw.bin;
-        best.limit = (float)(sw.bin + 1);
-        best.cost = sw.cost;
-        best.left = sw.left;
-        best.right = sw.right;
-        best.left_count = sw.left_count;
-        best.right_count = sw.right_count;
+/* ---- one node's work on several threads (the root, while the other
+ * threads would wait for its children) */
+
+typedef struct par_bin_job {
+    const bvh_ref *refs;
+    uint32_t count, nb;
+    v4f vcmin, vscale, last;
+    obj_bins *bins;   /* one per chunk */
+} par_bin_job;
+
+static void par_bin(void *user, unsigned c, unsigned n)
+{
+    par_bin_job *j = user;
+    uint32_t first, end;
+    chunk_range(j->count, c, n, &first, &end);
+    bin_all(j->refs + first, end - first, j->vcmin, j->vscale, j->last, j->nb, &j->bins[c]);
+}
+
+bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t nb,
+                                          unsigned threads)
+{
+    obj_bins *bins = threads > 1 ? malloc(sizeof(obj_bins) * threads) : NULL;
+    if (!bins) return bvh_find_object_split(refs, count, cb2, nb);
+    bvh_object_split best;
+    int use[3];
+    if (!object_frame(cb2, nb, &best, use)) {
+        free(bins);
+        return best;
     }
+    const float cmin[4] = {best.cmin[0], best.cmin[1], best.cmin[2], 0.0f};
+    const float scale[4] = {best.scale[0], best.scale[1], best.scale[2], 0.0f};
+    par_bin_job j = {refs, count, nb, v4f_load(cmin), v4f_load(scale), v4f_set1((float)(nb - 1)), bins};
+    as_parallel_run(threads, par_bin, &j);
+    /* min, max and sums are exact: the merged bins are those of one pass. */
+    for (unsigned c = 1; c < threads; ++c)
+        for (int axis = 0; axis < 3; ++axis)
+            for (uint32_t x = 0; x < nb; ++x) {
+                bins[0].lo[axis][x] = v4f_min(bins[0].lo[axis][x], bins[c].lo[axis][x]);
+                bins[0].hi[axis][x] = v4f_max(bins[0].hi[axis][x], bins[c].hi[axis][x]);
+                bins[0].n[axis][x] += bins[c].n[axis][x];
+            }
+    uint64_t occupied[3][BVH_MAX_BINS / 64];
+    occupied_from_counts(&bins[0], nb, occupied);
+    sweep_object_bins(&bins[0], occupied, use, nb, &best);
+    free(bins);
     return best;
 }
 
@@ -564,23 +651,17 @@ static uint32_t partition_hoare(bvh_builder *b, const bvh_range *node, const bvh
     return i;
 }
 
-/* The same permutation as Hoare's partition above (the k-th reference that
- * goes right among the first `left count` trades places with the k-th that
- * goes left among the rest, counted from the end), found without its
- * data-dependent branches: a first pass writes each reference's side into a
- * bit mask and grows both sides' centroid boxes through selects, a second
- * visits only the misplaced references through the masks' set bits. */
-uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
-                              bvh_range *right)
+/* Each reference's side in a bit mask (1: left) over refs[64 w0, ...) up
+ * to word w1, with both sides' centroid boxes grown through selects: no
+ * branch depends on the data. Returns the number that go left. */
+typedef struct side_pass {
+    v4f lclo, lchi, rclo, rchi;
+    uint32_t nl;
+} side_pass;
+
+static void mark_sides(const bvh_ref *refs, uint32_t count, const bvh_object_split *s, uint64_t *bits, uint32_t w0,
+                       uint32_t w1, side_pass *out)
 {
-    const uint32_t count = node->count, nwords = (count + 63) / 64;
-    uint64_t stack_bits[256];
-    uint64_t *bits = stack_bits;
-    if (nwords > sizeof stack_bits / sizeof stack_bits[0]) {
-        bits = malloc(sizeof(uint64_t) * nwords);
-        if (!bits) return partition_hoare(b, node, s, left, right);
-    }
-    bvh_ref *refs = b->refs + node->first;
     const int a = s->axis;
     const v4f vcmin = v4f_set3(s->cmin), vscale = v4f_set3(s->scale), vlimit = v4f_set1(s->limit);
     const v4f inf = v4f_set1(INFINITY), ninf = v4f_set1(-INFINITY);
@@ -590,7 +671,7 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
     const v4f lsel[2] = {inf, ninf}, rsel[2] = {ninf, inf};
     v4f lclo = inf, lchi = ninf, rclo = inf, rchi = ninf;
     uint32_t nl = 0;
-    for (uint32_t w = 0; w < nwords; ++w) {
+    for (uint32_t w = w0; w < w1; ++w) {
         const uint32_t first = 64 * w, n = count - first < 64 ? count - first : 64;
         uint64_t word = 0;
         for (uint32_t k = 0; k < n; ++k) {
@@ -607,42 +688,163 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
         }
         bits[w] = word;
     }
-    /* Misplaced: a zero bit below nl, a one bit from nl on. */
-    uint32_t wl = 0, wr = nwords - 1;
-#define LEFT_MASK(w) (64 * (w) + 64 <= nl ? ~bits[w] : ~bits[w] & (((uint64_t)1 << (nl - 64 * (w))) - 1))
-#define RIGHT_MASK(w)                                                                                      \
-    (64 * (w) >= nl ? bits[w] : nl - 64 * (w) >= 64 ? 0 : bits[w] & ~(((uint64_t)1 << (nl - 64 * (w))) - 1))
-    uint64_t lm = nl ? LEFT_MASK(0) : 0, rm = RIGHT_MASK(wr);
-    for (;;) {
-        while (!lm) {
-            if (64 * ++wl >= nl) goto done;
-            lm = LEFT_MASK(wl);
-        }
-        while (!rm) {
-            --wr;
-            rm = RIGHT_MASK(wr);
-        }
+    out->lclo = lclo;
+    out->lchi = lchi;
+    out->rclo = rclo;
+    out->rchi = rchi;
+    out->nl = nl;
+}
+
+/* Misplaced references: a zero bit below nl (goes right, sits left), a one
+ * bit from nl on. The k-th misplaced on the left, counted from the start,
+ * trades places with the k-th on the right, counted from the end: Hoare's
+ * permutation. */
+static inline uint64_t left_misplaced(const uint64_t *bits, uint32_t nl, uint32_t w)
+{
+    if (64 * w >= nl) return 0;
+    return 64 * w + 64 <= nl ? ~bits[w] : ~bits[w] & (((uint64_t)1 << (nl - 64 * w)) - 1);
+}
+
+static inline uint64_t right_misplaced(const uint64_t *bits, uint32_t nl, uint32_t w)
+{
+    if (64 * w >= nl) return bits[w];
+    return nl - 64 * w >= 64 ? 0 : bits[w] & ~(((uint64_t)1 << (nl - 64 * w)) - 1);
+}
+
+/* Swaps the misplaced pairs k0 <= k < k1 (pairs are disjoint, so ranges of
+ * them may run on different threads). */
+static void swap_misplaced(bvh_ref *refs, const uint64_t *bits, uint32_t nl, uint32_t nwords, uint32_t k0, uint32_t k1)
+{
+    if (k0 >= k1) return;
+    uint32_t wl = 0, wr = nwords - 1, skip = k0;
+    uint64_t lm, rm;
+    for (;; ++wl) {
+        lm = left_misplaced(bits, nl, wl);
+        const uint32_t pc = (uint32_t)__builtin_popcountll(lm);
+        if (skip < pc) break;
+        skip -= pc;
+    }
+    for (; skip; --skip) lm &= lm - 1;
+    skip = k0;
+    for (;; --wr) {
+        rm = right_misplaced(bits, nl, wr);
+        const uint32_t pc = (uint32_t)__builtin_popcountll(rm);
+        if (skip < pc) break;
+        skip -= pc;
+    }
+    for (; skip; --skip) rm &= ~((uint64_t)1 << (63 - __builtin_clzll(rm)));
+    for (uint32_t k = k0;;) {
+        while (!lm) lm = left_misplaced(bits, nl, ++wl);
+        while (!rm) rm = right_misplaced(bits, nl, --wr);
         const uint32_t p = 64 * wl + (uint32_t)__builtin_ctzll(lm), hb = 63 - (uint32_t)__builtin_clzll(rm);
         const uint32_t q = 64 * wr + hb;
         const bvh_ref t = refs[p];
         refs[p] = refs[q];
         refs[q] = t;
+        if (++k == k1) return;
         lm &= lm - 1;
         rm &= ~((uint64_t)1 << hb);
     }
-done:
-#undef LEFT_MASK
-#undef RIGHT_MASK
-    if (bits != stack_bits) free(bits);
+}
+
+static uint32_t count_misplaced(const uint64_t *bits, uint32_t nl)
+{
+    uint32_t m = 0;
+    for (uint32_t w = 0; 64 * w < nl; ++w) m += (uint32_t)__builtin_popcountll(left_misplaced(bits, nl, w));
+    return m;
+}
+
+static void finish_partition(const bvh_range *node, const bvh_object_split *s, const side_pass *sp, bvh_range *left,
+                             bvh_range *right)
+{
     left->first = node->first;
-    left->count = nl;
+    left->count = sp->nl;
     left->box = s->left;
-    left->cbox = bvh_box_from_v4f(lclo, lchi);
-    right->first = node->first + nl;
-    right->count = count - nl;
+    left->cbox = bvh_box_from_v4f(sp->lclo, sp->lchi);
+    right->first = node->first + sp->nl;
+    right->count = node->count - sp->nl;
     right->box = s->right;
-    right->cbox = bvh_box_from_v4f(rclo, rchi);
-    return node->first + nl;
+    right->cbox = bvh_box_from_v4f(sp->rclo, sp->rchi);
+}
+
+/* The same permutation as Hoare's partition above, found without its
+ * data-dependent branches: a first pass writes each reference's side into a
+ * bit mask and grows both sides' centroid boxes through selects, a second
+ * visits only the misplaced references through the masks' set bits. */
+uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
+                              bvh_range *right)
+{
+    const uint32_t count = node->count, nwords = (count + 63) / 64;
+    uint64_t stack_bits[256];
+    uint64_t *bits = stack_bits;
+    if (nwords > sizeof stack_bits / sizeof stack_bits[0]) {
+        bits = malloc(sizeof(uint64_t) * nwords);
+        if (!bits) return partition_hoare(b, node, s, left, right);
+    }
+    bvh_ref *refs = b->refs + node->first;
+    side_pass sp;
+    mark_sides(refs, count, s, bits, 0, nwords, &sp);
+    swap_misplaced(refs, bits, sp.nl, nwords, 0, count_misplaced(bits, sp.nl));
+    if (bits != stack_bits) free(bits);
+    finish_partition(node, s, &sp, left, right);
+    return node->first + sp.nl;
+}
+
+typedef struct par_part_job {
+    bvh_ref *refs;
+    uint32_t count, nwords, nl, misplaced;
+    const bvh_object_split *s;
+    uint64_t *bits;
+    side_pass part[256];
+} par_part_job;
+
+static void par_mark(void *user, unsigned c, unsigned n)
+{
+    par_part_job *j = user;
+    uint32_t w0, w1;
+    chunk_range(j->nwords, c, n, &w0, &w1);
+    mark_sides(j->refs, j->count, j->s, j->bits, w0, w1, &j->part[c]);
+}
+
+static void par_swap(void *user, unsigned c, unsigned n)
+{
+    par_part_job *j = user;
+    uint32_t k0, k1;
+    chunk_range(j->misplaced, c, n, &k0, &k1);
+    swap_misplaced(j->refs, j->bits, j->nl, j->nwords, k0, k1);
+}
+
+uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
+                                 bvh_range *right, unsigned threads)
+{
+    const uint32_t nwords = (node->count + 63) / 64;
+    par_part_job *j = threads > 1 && threads <= 256 ? malloc(sizeof *j) : NULL;
+    uint64_t *bits = j ? malloc(sizeof(uint64_t) * nwords) : NULL;
+    if (!bits) {
+        free(j);
+        return bvh_partition_object(b, node, s, left, right);
+    }
+    j->refs = b->refs + node->first;
+    j->count = node->count;
+    j->nwords = nwords;
+    j->s = s;
+    j->bits = bits;
+    as_parallel_run(threads, par_mark, j);
+    side_pass sp = j->part[0];
+    for (unsigned c = 1; c < threads; ++c) {
+        sp.lclo = v4f_min(sp.lclo, j->part[c].lclo);
+        sp.lchi = v4f_max(sp.lchi, j->part[c].lchi);
+        sp.rclo = v4f_min(sp.rclo, j->part[c].rclo);
+        sp.rchi = v4f_max(sp.rchi, j->part[c].rchi);
+        sp.nl += j->part[c].nl;
+    }
+    j->nl = sp.nl;
+    j->misplaced = count_misplaced(bits, sp.nl);
+    as_parallel_run(threads, par_swap, j);
+    free(bits);
+    free(j);
+    finish_partition(node, s, &sp, left, right);
+    return node->first + sp.nl;
 }
 
 typedef struct inplace_task {
@@ -707,11 +909,15 @@ int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split)
     memset(&t, 0, sizeof t);
     t.range.first = 0;
     t.range.count = b->ref_count;
-    bvh_range_bound(b, &t.range);
+    t.range.box = b->root_box;
+    t.range.cbox = b->root_cbox;
     t.node = root;
     t.depth = 0;
     const inplace_ctx ctx = {b, split};
     const unsigned threads = (unsigned)b->max_threads + 1;
+    /* Until the root is split, its task is the only one: the split
+     * functions may spread its work over every thread. */
+    b->root_threads = threads > 256 ? 256 : threads;
     if (threads < 2 || b->ref_count < 2 * BVH_PARALLEL_MIN_PRIMS ||
         !as_task_pool_run(threads, sizeof t, &t, inplace_run, (void *)&ctx))
         inplace_run(NULL, &t, (void *)&ctx);

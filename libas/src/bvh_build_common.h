@@ -44,6 +44,8 @@ typedef struct bvh_builder {
     bvh_ref *refs;            /* one per non-degenerate triangle, source order */
     uint32_t ref_count;
     bvh_box root_box;
+    bvh_box root_cbox;        /* of lo + hi (see bvh_refs_centroid2_box) */
+    unsigned root_threads;    /* threads that may split the root together */
     bvh_tmp_node *nodes;
     atomic_uint_fast64_t node_next;
     uint64_t node_capacity;
@@ -183,6 +185,10 @@ typedef struct bvh_object_split {
     uint32_t left_count, right_count;
 } bvh_object_split;
 bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t bin_count);
+/* The same split, binned in `threads` chunks on as many threads and merged:
+ * the bins, and so the split, are those of bvh_find_object_split. */
+bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t bin_count,
+                                          unsigned threads);
 /* Whether r goes left: the float operations of the binning, on one axis,
  * so the partition and the bins always agree. The binning truncates
  * f = (lo + hi - cmin) x scale, clamped into [0, bins - 1], and f is never
@@ -223,6 +229,12 @@ void bvh_range_bound(const bvh_builder *b, bvh_range *r);
  * sides with their bounds; returns the first index of the right side. */
 uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
                               bvh_range *right);
+/* The same permutation on `threads` threads. */
+uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
+                                 bvh_range *right, unsigned threads);
+/* Nodes with at least this many references are split on several threads
+ * when nothing else could run (the root). */
+#define BVH_SPLIT_MT_MIN_PRIMS 65536
 
 /* In-place builders: a split function partitions node's references and
  * fills `left` and `right` (node's range in two non-empty parts, in order,

@@ -40,12 +40,18 @@ static int binned_split(bvh_builder *b, const bvh_range *node, bvh_range *left, 
         left->cbox = right->cbox = left->box;
         return 1;
     }
-    const bvh_object_split s = bvh_find_object_split(b->refs + node->first, count, &node->cbox, b->args->bin_count);
+    /* Only the root holds every reference; while it is split the other
+     * threads have nothing to do. */
+    const unsigned threads = count == b->ref_count && count >= BVH_SPLIT_MT_MIN_PRIMS ? b->root_threads : 1;
+    const bvh_object_split s =
+        threads > 1 ? bvh_find_object_split_mt(b->refs + node->first, count, &node->cbox, b->args->bin_count, threads)
+                    : bvh_find_object_split(b->refs + node->first, count, &node->cbox, b->args->bin_count);
     const double area = bvh_box_half_area(&node->box);
     const double leaf_cost = ci * (double)count;
     const double split_cost = area > 0 ? ct + ci * s.cost / area : ct + ci * (double)count;
     if (s.axis >= 0 && (split_cost < leaf_cost || count > b->args->max_leaf_size)) {
-        bvh_partition_object(b, node, &s, left, right);
+        if (threads > 1) bvh_partition_object_mt(b, node, &s, left, right, threads);
+        else bvh_partition_object(b, node, &s, left, right);
         if (left->count && right->count) return 1;
     } else if (count <= b->args->max_leaf_size) {
         return 0;
