@@ -151,66 +151,53 @@ static inline void cross_section(const v4f p[3], const float x[3], float pos, v4
  * that spans several is cut into the bins it spans, each part the box of the
  * triangle's cross-sections at the part's planes and of its vertices
  * between them, within the reference's box. */
-static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs, uint32_t count, const bvh_box *node_box)
-{
-    const bvh_builder *b = ctx->b;
-    const uint32_t nb = b->args->bin_count < SBVH_SPATIAL_BINS ? b->args->bin_count : SBVH_SPATIAL_BINS;
-    spatial_split best;
-    memset(&best, 0, sizeof best);
-    best.axis = -1;
-    best.cost = INFINITY;
+/* A node's spatial binning frame: per axis whether it is binned, the bin
+ * planes and the lane masks of the slab clamp. */
+typedef struct spatial_frame {
+    uint32_t nb;
     int use[3];
-    float nlo[4] = {0, 0, 0, 0}, scale[4] = {0, 0, 0, 0};
-    for (int axis = 0; axis < 3; ++axis) {
-        const float extent = node_box->hi[axis] - node_box->lo[axis];
-        nlo[axis] = node_box->lo[axis];
-        scale[axis] = extent > 0.0f ? (float)nb / extent : 0.0f;
-        use[axis] = extent > 0.0f && isfinite(scale[axis]);
-        if (!use[axis]) scale[axis] = 0.0f;
-    }
-    if (!use[0] && !use[1] && !use[2]) return best;
     float planes[3][SBVH_SPATIAL_BINS + 1];
-    for (int axis = 0; axis < 3; ++axis)
-        for (uint32_t i = 0; i <= nb; ++i)
-            planes[axis][i] = node_box->lo[axis] + (node_box->hi[axis] - node_box->lo[axis]) * ctx->fraction[i];
-    uint32_t occupied[3] = {0, 0, 0};
-    v4f blo[3][SBVH_SPATIAL_BINS], bhi[3][SBVH_SPATIAL_BINS];
-    uint32_t enter[3][SBVH_SPATIAL_BINS], leave[3][SBVH_SPATIAL_BINS];
-    const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY);
-    for (int axis = 0; axis < 3; ++axis)
-        for (uint32_t i = 0; i < nb; ++i) {
-            blo[axis][i] = empty_lo;
-            bhi[axis][i] = empty_hi;
-            enter[axis][i] = leave[axis][i] = 0;
-        }
-    const v4f vlo = v4f_load(nlo), vscale = v4f_load(scale), zero = v4f_set1(0.0f), last = v4f_set1((float)(nb - 1));
-    /* Per axis: +inf in its lane and -inf elsewhere (slab_lo), the opposite
-     * (slab_hi), so that min(set1(lower), slab_lo) is lower on the axis and
-     * leaves the other lanes alone under a max. */
+    v4f vlo, vscale, last;
     v4f slab_lo[3], slab_hi[3];
+} spatial_frame;
+
+typedef struct spatial_bins {
+    v4f lo[3][SBVH_SPATIAL_BINS], hi[3][SBVH_SPATIAL_BINS];
+    uint32_t enter[3][SBVH_SPATIAL_BINS], leave[3][SBVH_SPATIAL_BINS];
+    uint32_t occupied[3];
+} spatial_bins;
+
+/* Bins refs[0, count) into sb (initialised here). Each bin ends as the
+ * exact union and counts of what falls in it, so chunks binned apart and
+ * merged give the bins of one pass. */
+static void spatial_bin(const bvh_builder *b, const spatial_frame *f, const bvh_ref *refs, uint32_t count, spatial_bins *sb)
+{
+    const uint32_t nb = f->nb;
+    const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY), zero = v4f_set1(0.0f);
     for (int axis = 0; axis < 3; ++axis) {
-        float l[4] = {-INFINITY, -INFINITY, -INFINITY, -INFINITY}, h[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
-        l[axis] = INFINITY;
-        h[axis] = -INFINITY;
-        slab_lo[axis] = v4f_load(l);
-        slab_hi[axis] = v4f_load(h);
+        sb->occupied[axis] = 0;
+        for (uint32_t i = 0; i < nb; ++i) {
+            sb->lo[axis][i] = empty_lo;
+            sb->hi[axis][i] = empty_hi;
+            sb->enter[axis][i] = sb->leave[axis][i] = 0;
+        }
     }
     for (uint32_t i = 0; i < count; ++i) {
         const bvh_ref *r = &refs[i];
         const v4f lo = v4f_load3(r->lo), hi = v4f_load3(r->hi);
         int32_t k0[4], k1[4];
-        v4f_to_i32(v4f_min(v4f_max(v4f_mul(v4f_sub(lo, vlo), vscale), zero), last), k0);
-        v4f_to_i32(v4f_min(v4f_max(v4f_mul(v4f_sub(hi, vlo), vscale), zero), last), k1);
+        v4f_to_i32(v4f_min(v4f_max(v4f_mul(v4f_sub(lo, f->vlo), f->vscale), zero), f->last), k0);
+        v4f_to_i32(v4f_min(v4f_max(v4f_mul(v4f_sub(hi, f->vlo), f->vscale), zero), f->last), k1);
         const float *v[3] = {NULL, NULL, NULL};
         for (int axis = 0; axis < 3; ++axis) {
-            if (!use[axis]) continue;
+            if (!f->use[axis]) continue;
             const int b0 = k0[axis], b1 = k1[axis];
-            enter[axis][b0]++;
-            leave[axis][b1]++;
+            sb->enter[axis][b0]++;
+            sb->leave[axis][b1]++;
             if (b0 == b1) {
-                blo[axis][b0] = v4f_min(blo[axis][b0], lo);
-                bhi[axis][b0] = v4f_max(bhi[axis][b0], hi);
-                occupied[axis] |= 1u << b0;
+                sb->lo[axis][b0] = v4f_min(sb->lo[axis][b0], lo);
+                sb->hi[axis][b0] = v4f_max(sb->hi[axis][b0], hi);
+                sb->occupied[axis] |= 1u << b0;
                 continue;
             }
             if (!v[0]) {
@@ -229,8 +216,8 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
             v4f_store(rhi, hi);
             v4f low_a = zero, low_b = zero; /* the cross-section at the part's lower plane */
             for (int k = b0; k <= b1; ++k) {
-                const float lower = k == b0 ? rlo[axis] : planes[axis][k];
-                const float upper = k == b1 ? rhi[axis] : planes[axis][k + 1];
+                const float lower = k == b0 ? rlo[axis] : f->planes[axis][k];
+                const float upper = k == b1 ? rhi[axis] : f->planes[axis][k + 1];
                 v4f plo = empty_lo, phi = empty_hi;
                 if (k > b0) {
                     plo = v4f_min(low_a, low_b);
@@ -250,14 +237,86 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
                  * is clamped in registers (max(lower, x) is "x < lower ?
                  * lower : x"): a store, a store to one lane and a load of
                  * all four would stall store forwarding, once per part. */
-                plo = v4f_max(v4f_min(v4f_set1(lower), slab_lo[axis]), v4f_max(plo, lo));
-                phi = v4f_min(v4f_max(v4f_set1(upper), slab_hi[axis]), v4f_min(phi, hi));
+                plo = v4f_max(v4f_min(v4f_set1(lower), f->slab_lo[axis]), v4f_max(plo, lo));
+                phi = v4f_min(v4f_max(v4f_set1(upper), f->slab_hi[axis]), v4f_min(phi, hi));
                 if ((v4f_le_mask(plo, phi) & 7) != 7) continue;
-                blo[axis][k] = v4f_min(blo[axis][k], plo);
-                bhi[axis][k] = v4f_max(bhi[axis][k], phi);
-                occupied[axis] |= 1u << k;
+                sb->lo[axis][k] = v4f_min(sb->lo[axis][k], plo);
+                sb->hi[axis][k] = v4f_max(sb->hi[axis][k], phi);
+                sb->occupied[axis] |= 1u << k;
             }
         }
+    }
+}
+
+typedef struct par_spatial_job {
+    const bvh_builder *b;
+    const spatial_frame *f;
+    const bvh_ref *refs;
+    uint32_t count;
+    spatial_bins *bins;
+} par_spatial_job;
+
+static void par_spatial(void *user, unsigned c, unsigned n)
+{
+    const par_spatial_job *j = user;
+    const uint32_t first = (uint32_t)((uint64_t)j->count * c / n), end = (uint32_t)((uint64_t)j->count * (c + 1) / n);
+    spatial_bin(j->b, j->f, j->refs + first, end - first, &j->bins[c]);
+}
+
+static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs, uint32_t count, const bvh_box *node_box,
+                                        unsigned threads)
+{
+    const bvh_builder *b = ctx->b;
+    spatial_frame fr;
+    const uint32_t nb = fr.nb = b->args->bin_count < SBVH_SPATIAL_BINS ? b->args->bin_count : SBVH_SPATIAL_BINS;
+    spatial_split best;
+    memset(&best, 0, sizeof best);
+    best.axis = -1;
+    best.cost = INFINITY;
+    int *use = fr.use;
+    float nlo[4] = {0, 0, 0, 0}, scale[4] = {0, 0, 0, 0};
+    for (int axis = 0; axis < 3; ++axis) {
+        const float extent = node_box->hi[axis] - node_box->lo[axis];
+        nlo[axis] = node_box->lo[axis];
+        scale[axis] = extent > 0.0f ? (float)nb / extent : 0.0f;
+        use[axis] = extent > 0.0f && isfinite(scale[axis]);
+        if (!use[axis]) scale[axis] = 0.0f;
+    }
+    if (!use[0] && !use[1] && !use[2]) return best;
+    for (int axis = 0; axis < 3; ++axis)
+        for (uint32_t i = 0; i <= nb; ++i)
+            fr.planes[axis][i] = node_box->lo[axis] + (node_box->hi[axis] - node_box->lo[axis]) * ctx->fraction[i];
+    fr.vlo = v4f_load(nlo);
+    fr.vscale = v4f_load(scale);
+    fr.last = v4f_set1((float)(nb - 1));
+    /* Per axis: +inf in its lane and -inf elsewhere (slab_lo), the opposite
+     * (slab_hi), so that min(set1(lower), slab_lo) is lower on the axis and
+     * leaves the other lanes alone under a max. */
+    for (int axis = 0; axis < 3; ++axis) {
+        float l[4] = {-INFINITY, -INFINITY, -INFINITY, -INFINITY}, h[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
+        l[axis] = INFINITY;
+        h[axis] = -INFINITY;
+        fr.slab_lo[axis] = v4f_load(l);
+        fr.slab_hi[axis] = v4f_load(h);
+    }
+    spatial_bins one, *many = threads > 1 ? malloc(sizeof(spatial_bins) * threads) : NULL, *sb = &one;
+    if (many) {
+        par_spatial_job j = {b, &fr, refs, count, many};
+        as_parallel_run(threads, par_spatial, &j);
+        /* Unions and sums are exact: the merged bins are those of one pass. */
+        for (unsigned c = 1; c < threads; ++c)
+            for (int axis = 0; axis < 3; ++axis) {
+                many[0].occupied[axis] |= many[c].occupied[axis];
+                for (uint32_t i = 0; i < nb; ++i) {
+                    many[0].lo[axis][i] = v4f_min(many[0].lo[axis][i], many[c].lo[axis][i]);
+                    many[0].hi[axis][i] = v4f_max(many[0].hi[axis][i], many[c].hi[axis][i]);
+                    many[0].enter[axis][i] += many[c].enter[axis][i];
+                    many[0].leave[axis][i] += many[c].leave[axis][i];
+                }
+            }
+        sb = &many[0];
+    } else {
+        spatial_bin(b, &fr, refs, count, &one);
     }
     /* A reference's enter and leave bins hold parts of it, so a plane
      * between two bins without parts splits like the one after the last
@@ -265,17 +324,18 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
     for (int axis = 0; axis < 3; ++axis) {
         if (!use[axis]) continue;
         uint32_t occ[SBVH_SPATIAL_BINS], m = 0;
-        for (uint32_t bits = occupied[axis]; bits; bits &= bits - 1) occ[m++] = (uint32_t)__builtin_ctz(bits);
+        for (uint32_t bits = sb->occupied[axis]; bits; bits &= bits - 1) occ[m++] = (uint32_t)__builtin_ctz(bits);
         bvh_bin_sweep sw;
-        if (!bvh_sweep_bins(blo[axis], bhi[axis], enter[axis], leave[axis], nb, 0, occ, m, best.cost, &sw)) continue;
+        if (!bvh_sweep_bins(sb->lo[axis], sb->hi[axis], sb->enter[axis], sb->leave[axis], nb, 0, occ, m, best.cost, &sw)) continue;
         best.axis = axis;
-        best.pos = planes[axis][sw.bin + 1];
+        best.pos = fr.planes[axis][sw.bin + 1];
         best.cost = sw.cost;
         best.left = sw.left;
         best.right = sw.right;
         best.nl = sw.left_count;
         best.nr = sw.right_count;
     }
+    free(many);
     return best;
 }
 
@@ -388,13 +448,16 @@ static void copy_sides(const bvh_ref *refs, uint32_t count, uint32_t nl, sides *
 
 /* Splits one node into `sd` (both sides non-empty), or returns 0 for a
  * leaf. `refs` may be reordered. */
-static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uint32_t count, uint64_t budget, sides *sd)
+static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uint32_t count, uint64_t budget, int root,
+                      sides *sd)
 {
     bvh_builder *b = ctx->b;
     const float ci = b->args->cost_intersection, ct = b->args->cost_traversal;
     const uint32_t nb = b->args->bin_count;
     const double area = bvh_box_half_area(node_box);
     const double leaf_cost = ci * (double)count;
+    /* While the root is split the other threads have nothing to do. */
+    const unsigned threads = root && count >= BVH_SPLIT_MT_MIN_PRIMS ? b->root_threads : 1;
 
     /* The object split: exact for small nodes, binned above. */
     bvh_object_split os;
@@ -409,6 +472,8 @@ static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uin
             os.left = bvh_refs_box(refs, small_nl);
             os.right = bvh_refs_box(refs + small_nl, count - small_nl);
         }
+    } else if (threads > 1) {
+        os = bvh_find_object_split_mt(refs, count, &b->root_cbox, nb, threads);
     } else {
         const bvh_box cb = bvh_refs_centroid2_box(refs, count);
         os = bvh_find_object_split(refs, count, &cb, nb);
@@ -425,7 +490,7 @@ static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uin
             ov.lo[a] = os.left.lo[a] > os.right.lo[a] ? os.left.lo[a] : os.right.lo[a];
             ov.hi[a] = os.left.hi[a] < os.right.hi[a] ? os.left.hi[a] : os.right.hi[a];
         }
-        if (box_valid(&ov) && bvh_box_half_area(&ov) > ctx->alpha_area) ss = find_spatial_split(ctx, refs, count, node_box);
+        if (box_valid(&ov) && bvh_box_half_area(&ov) > ctx->alpha_area) ss = find_spatial_split(ctx, refs, count, node_box, threads);
     }
     /* Where every centroid coincides (copies of one triangle) no spatial
      * split is tried: it would only duplicate the copies. */
@@ -469,7 +534,7 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_task t)
         sides sd = {NULL, NULL, 0, 0};
         int32_t l, r;
         if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t.count <= 1 || t.depth + 1 >= b->depth_limit ||
-            !sbvh_split(t.ctx, &b->nodes[t.node].box, t.refs, t.count, t.budget, &sd)) {
+            !sbvh_split(t.ctx, &b->nodes[t.node].box, t.refs, t.count, t.budget, t.depth == 0, &sd)) {
             bvh_local_leaf(loc, t.node, t.refs, t.count);
             return;
         }
@@ -538,13 +603,14 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     free(b.nodes);
     b.node_capacity = 2 * ((uint64_t)b.ref_count + budget) + 3 + BVH_NODE_SLACK;
     b.nodes = as_malloc(sizeof(bvh_tmp_node) * b.node_capacity, "SBVH build nodes");
-    bvh_ref *root_refs = as_malloc(sizeof(bvh_ref) * (size_t)(b.ref_count ? b.ref_count : 1), "SBVH references");
-    if (!b.nodes || !root_refs) {
-        free(root_refs);
+    if (!b.nodes) {
         bvh_builder_free(&b);
         return as_get_error();
     }
-    memcpy(root_refs, b.refs, sizeof(bvh_ref) * b.ref_count);
+    /* The root task owns the references from here on, as every task owns
+     * its own. */
+    bvh_ref *root_refs = b.refs;
+    b.refs = NULL;
     sbvh_ctx ctx;
     ctx.b = &b;
     ctx.alpha_area = (double)args->sbvh_alpha * bvh_box_half_area(&b.root_box);
@@ -555,6 +621,7 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     b.nodes[root].left = b.nodes[root].right = -1;
     const sbvh_task t = {&ctx, root, root_refs, b.ref_count, budget, 0};
     const unsigned threads = (unsigned)b.max_threads + 1;
+    b.root_threads = threads > 256 ? 256 : threads;
     if (threads < 2 || b.ref_count < 2 * BVH_PARALLEL_MIN_PRIMS || !as_task_pool_run(threads, sizeof t, &t, sbvh_run, NULL))
         sbvh_run(NULL, (void *)&t, NULL);
     err = bvh_builder_finish(&b, root, AS_BUILDER_BVH_SBVH, s, t_start);
