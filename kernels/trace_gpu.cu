@@ -3,6 +3,7 @@
 // and times launches.
 #include "bvh2_traverse.h"
 #include "bvh2_own_traverse.h"
+#include "cwbvh_traverse.h"
 #include "kd_traverse.h"
 #include "kd_ropes_traverse.h"
 #include "bih_traverse.h"
@@ -57,6 +58,15 @@ struct bvh2_own_traversal {
     __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
     {
         as_bvh2o_trace(nodes, tris, r, any_hit, h, c);
+    }
+};
+
+struct cwbvh_traversal {
+    const as_cwbvh_node_t *nodes;
+    const as_tri4_t *tris;
+    __device__ void trace(const as_ray_pre_t *r, int any_hit, as_hit_rec_t *h, as_trace_counters_t *c) const
+    {
+        as_cwbvh_trace(nodes, tris, r, any_hit, h, c);
     }
 };
 
@@ -510,6 +520,10 @@ extern "C" as_error_t as_trace_gpu(uint32_t layout, const as_gpu_resident_t *g, 
     }
     case AS_LAYOUT_BVH2_OWN_BOUNDS: {
         const bvh2_own_traversal t = {(const as_bvh2o_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
+        return launch_traversal(t, g, rays, count, hits, launch, timing);
+    }
+    case AS_LAYOUT_BVH_CWBVH: {
+        const cwbvh_traversal t = {(const as_cwbvh_node_t *)g->device[0], (const as_tri4_t *)g->device[1]};
         return launch_traversal(t, g, rays, count, hits, launch, timing);
     }
     case AS_LAYOUT_KD_STANDARD: {

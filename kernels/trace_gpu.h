@@ -67,6 +67,9 @@ as_error_t as_gpu_validate_bvh2(const as_gpu_resident_t *g, const char *name, co
  * with the checks of as_bvh2_own_validate; node_count is BVHO's records,
  * META's node count the inner nodes among them. */
 as_error_t as_gpu_validate_bvh2_own(const as_gpu_resident_t *g, const char *name, const as_gpu_bvh2_expect_t *expect);
+/* The same for compressed wide BVH sections (device[0] CWBV, device[1]
+ * TRI4), with the checks of as_cwbvh_validate; node_count is CWBV's. */
+as_error_t as_gpu_validate_cwbvh(const as_gpu_resident_t *g, const char *name, const as_gpu_bvh2_expect_t *expect);
 
 /* What a KD structure's sections and META must agree on (kd-standard:
  * device[0] KDN8, [1] PRIM, [2] TRIS; kd-ropes also [3] KDRP, [4] KDLB). */

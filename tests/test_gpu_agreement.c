@@ -113,6 +113,7 @@ static const char *const variants[][3] = {
     {"kd", "sah", "kd-standard"},         {"kd", "midcut", "kd-ropes"},
     {"kd", "sah", "kd-ropes"},            {"bih", "bih", "bih"},
     {"octree", "octree", "octree"},       {"grid", "grid", "grid"},
+    {"bvh", "sah", "cwbvh"},              {"bvh", "sbvh", "cwbvh"},
 };
 
 static void gpu_hits_equal_cpu_hits(const char *path, size_t n)
@@ -169,7 +170,7 @@ static void gpu_hits_equal_cpu_hits_per_workload(const char *path)
     static const char *const kinds[][3] = {
         {"bvh", "sbvh", "bvh2-child-bounds"}, {"bvh", "sah", "bvh2-own-bounds"}, {"kd", "sah", "kd-standard"},
         {"kd", "sah", "kd-ropes"},            {"bih", "bih", "bih"},                {"octree", "octree", "octree"},
-        {"grid", "grid", "grid"},
+        {"grid", "grid", "grid"},             {"bvh", "sbvh", "cwbvh"},
     };
     for (size_t v = 0; v < sizeof kinds / sizeof kinds[0]; ++v) {
         as_structure_t *s = build_variant(m, kinds[v]);

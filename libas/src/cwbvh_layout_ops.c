@@ -1,5 +1,5 @@
-/* The compressed wide BVH layout: its sections, statistics and CPU
- * traversal (kernels/cwbvh_traverse.h). It is made from a BVH2 (build with
+/* The compressed wide BVH layout: its sections, statistics, and the CPU
+ * and GPU traversals (both run kernels/cwbvh_traverse.h). It is made from a BVH2 (build with
  * --layout cwbvh, or as_structure_convert), never converted back: the
  * quantized boxes are not the binary tree's. */
 #include "structure.h"
@@ -116,4 +116,8 @@ const as_layout_ops_t as_layout_cwbvh = {
     .stats = cwbvh_stats,
     .trace_cpu = cwbvh_trace_cpu,
     .convert = cwbvh_convert,
+#ifdef AS_HAVE_CUDA
+    .trace_gpu = as_layout_trace_gpu,
+    .validate_gpu = as_cwbvh_validate_gpu,
+#endif
 };

@@ -5,6 +5,7 @@
  * it, the boxes the traversal tests on the way down. */
 #include "structure.h"
 #include "cwbvh_layout.h"
+#include "trace_gpu.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -170,3 +171,18 @@ done:
     free(stack);
     return err;
 }
+
+#ifdef AS_HAVE_CUDA
+as_error_t as_cwbvh_validate_gpu(const as_structure_t *s, const char *name)
+{
+    const as_section_t *ns = as_structure_find(s, ASF_TAG_CWBV), *ts = as_structure_find(s, ASF_TAG_TRI4);
+    if (!ns || !ts || !s->gpu) return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: CWBV or TRI4 section missing", name);
+    as_gpu_bvh2_expect_t e = {
+        .node_count = ns->count,
+        .tri_count = ts->count,
+        .clipped_leaves = s->meta.builder == AS_BUILDER_BVH_SBVH,
+    };
+    as_gpu_meta_expect(s, &e.meta);
+    return as_gpu_validate_cwbvh(s->gpu, name, &e);
+}
+#endif

@@ -209,6 +209,8 @@ as_error_t as_cwbvh_build(const as_mesh_t *mesh, const as_build_args_t *args,
                           as_error_t (*build)(const as_mesh_t *, const as_build_args_t *, as_structure_t *),
                           as_structure_t *s);
 as_error_t as_cwbvh_validate(const as_structure_t *s, const char *name);
+/* The same checks on the GPU, over s->gpu (CUDA builds). */
+as_error_t as_cwbvh_validate_gpu(const as_structure_t *s, const char *name);
 /* SAH cost over the decoded boxes (cwbvh_layout_ops.c). */
 double as_cwbvh_sah_cost(const as_structure_t *s);
 
