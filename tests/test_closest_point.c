@@ -236,7 +236,7 @@ static size_t compare(const char *what, const ref_mesh_t *r, const queries_t *q,
 
 static const as_builder_t bvh_builders[] = {AS_BUILDER_BVH_SAH_BINNED, AS_BUILDER_BVH_SAH_SWEEP,
                                             AS_BUILDER_BVH_MIDCUT, AS_BUILDER_BVH_SBVH};
-static const as_layout_t bvh_layouts[] = {AS_LAYOUT_BVH2_CHILD_BOUNDS, AS_LAYOUT_BVH2_OWN_BOUNDS};
+static const as_layout_t bvh_layouts[] = {AS_LAYOUT_BVH2_CHILD_BOUNDS, AS_LAYOUT_BVH2_OWN_BOUNDS, AS_LAYOUT_BVH_CWBVH};
 
 static as_structure_t *build(const as_mesh_t *mesh, as_structure_kind_t kind, as_builder_t builder, as_layout_t layout)
 {

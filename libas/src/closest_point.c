@@ -16,6 +16,7 @@
  * ulps of double at most, far below what a float answer can show. */
 #include "structure.h"
 #include "bvh2_own_layout.h"
+#include "cwbvh_layout.h"
 
 #include <math.h>
 #include <string.h>
@@ -177,8 +178,9 @@ typedef struct child_ref {
 } child_ref_t;
 
 typedef struct bvh_view {
-    const as_bvh2_node_t *child_bounds;  /* one of the two is set */
+    const as_bvh2_node_t *child_bounds;  /* one of the three is set */
     const as_bvh2o_node_t *own_bounds;
+    const as_cwbvh_node_t *wide;
     const as_tri4_t *tris;
 } bvh_view_t;
 
@@ -259,6 +261,72 @@ static void bvh_closest(const bvh_view_t *bvh, const double p[3], nearest_t *bes
     }
 }
 
+/* The same walk over the compressed wide BVH, through the boxes its
+ * traversal decodes: a node's leaves first, then its inner children nearest
+ * first, the others pushed (at most seven per level, and validation bounds
+ * the depth by AS_CWBVH_MAX_DEPTH). */
+static void wide_closest(const bvh_view_t *bvh, const double p[3], nearest_t *best)
+{
+    struct { uint32_t node; double d2; } stack[8 * (AS_CWBVH_MAX_DEPTH + 2)];
+    int sp = 0;
+    uint32_t node = 0;
+    for (;;) {
+        const as_cwbvh_node_t *n = &bvh->wide[node];
+        struct { uint32_t node; double d2; } open[8];
+        int nopen = 0;
+        uint32_t rank = 0;
+        for (int k = 0; k < 8; ++k) {
+            const uint32_t meta = n->meta[k];
+            if (meta == 0) continue;
+            const int inner = as_cwbvh_meta_is_inner(meta);
+            const uint32_t child = inner ? n->child_base + rank++ : 0;
+            float lo[3], hi[3];
+            for (int a = 0; a < 3; ++a) {
+                const float scale = as_cwbvh_scale(n->e[a]);
+                lo[a] = as_cwbvh_decode(n->p[a], scale, n->qlo[a][k]);
+                hi[a] = as_cwbvh_decode(n->p[a], scale, n->qhi[a][k]);
+            }
+            const double d2 = box_distance2(p, lo, hi);
+            /* <=, not <: a box at exactly the best distance may hold a tie
+             * with a lower source index. */
+            if (d2 > best->d2) continue;
+            if (!inner) {
+                leaf_closest(p, bvh->tris, n->tri_base + (meta & 31u), as_cwbvh_meta_count(meta), best);
+                continue;
+            }
+            /* Insertion by distance, farthest first, ties in slot order. */
+            int at = nopen++;
+            while (at > 0 && open[at - 1].d2 < d2) {
+                open[at] = open[at - 1];
+                --at;
+            }
+            open[at].node = child;
+            open[at].d2 = d2;
+        }
+        /* The best may have improved in a leaf of this node. */
+        for (int k = 0; k + 1 < nopen; ++k) {
+            if (open[k].d2 > best->d2 || sp >= (int)(sizeof stack / sizeof stack[0])) continue;
+            stack[sp].node = open[k].node;
+            stack[sp].d2 = open[k].d2;
+            ++sp;
+        }
+        if (nopen > 0 && open[nopen - 1].d2 <= best->d2) {
+            node = open[nopen - 1].node;
+            continue;
+        }
+        int found = 0;
+        while (sp > 0) {
+            --sp;
+            if (stack[sp].d2 <= best->d2) {
+                node = stack[sp].node;
+                found = 1;
+                break;
+            }
+        }
+        if (!found) return;
+    }
+}
+
 typedef struct closest_job {
     bvh_view_t bvh;
     const float *points;
@@ -273,7 +341,10 @@ static void closest_one(const closest_job_t *job, size_t i)
     as_closest_point_t *o = &job->out[i];
     nearest_t best = {job->max_d2, AS_NO_HIT, {0.0, 0.0, 0.0}, 0.0, 0.0};
     const double p[3] = {pf[0], pf[1], pf[2]};
-    if (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]) && job->bvh.tris) bvh_closest(&job->bvh, p, &best);
+    if (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]) && job->bvh.tris) {
+        if (job->bvh.wide) wide_closest(&job->bvh, p, &best);
+        else bvh_closest(&job->bvh, p, &best);
+    }
     o->prim = best.prim;
     if (best.prim == AS_NO_HIT) {
         o->point[0] = o->point[1] = o->point[2] = 0.0f;
@@ -312,9 +383,10 @@ as_error_t as_closest_points(const as_structure_t *s, const float *points, size_
         return as_set_error(AS_ERROR_INVALID_ARGUMENT, "as_closest_points: max_distance %g is not a non-negative number",
                             (double)args.max_distance);
     const as_layout_ops_t *ops = as_structure_ops(s);
-    if (s->meta.layout != AS_LAYOUT_BVH2_CHILD_BOUNDS && s->meta.layout != AS_LAYOUT_BVH2_OWN_BOUNDS)
-        return as_set_error(AS_ERROR_UNSUPPORTED, "closest-point queries need a BVH (bvh2-child-bounds or "
-                            "bvh2-own-bounds); this structure is a %s in the %s layout", ops->kind_name,
+    if (s->meta.layout != AS_LAYOUT_BVH2_CHILD_BOUNDS && s->meta.layout != AS_LAYOUT_BVH2_OWN_BOUNDS &&
+        s->meta.layout != AS_LAYOUT_BVH_CWBVH)
+        return as_set_error(AS_ERROR_UNSUPPORTED, "closest-point queries need a BVH (bvh2-child-bounds, "
+                            "bvh2-own-bounds or cwbvh); this structure is a %s in the %s layout", ops->kind_name,
                             ops->layout_name);
     /* The walk follows child indices and leaf ranges: only a valid tree may
      * be walked. */
@@ -326,11 +398,13 @@ as_error_t as_closest_points(const as_structure_t *s, const float *points, size_
     memset(&job, 0, sizeof job);
     const as_section_t *ts = as_structure_find(s, ASF_TAG_TRI4);
     const as_section_t *ns = as_structure_find(s, s->meta.layout == AS_LAYOUT_BVH2_CHILD_BOUNDS ? ASF_TAG_BVH2
-                                                                                               : ASF_TAG_BVHO);
+                                                  : s->meta.layout == AS_LAYOUT_BVH2_OWN_BOUNDS  ? ASF_TAG_BVHO
+                                                                                                 : ASF_TAG_CWBV);
     if (ns->count > 0 && ts->count > 0) {
         job.bvh.tris = ts->data;
         if (s->meta.layout == AS_LAYOUT_BVH2_CHILD_BOUNDS) job.bvh.child_bounds = ns->data;
-        else job.bvh.own_bounds = ns->data;
+        else if (s->meta.layout == AS_LAYOUT_BVH2_OWN_BOUNDS) job.bvh.own_bounds = ns->data;
+        else job.bvh.wide = ns->data;
     }
     job.points = points;
     job.count = count;

@@ -597,7 +597,7 @@ typedef struct as_closest_point_result {
     float u, v;
 } as_closest_point_t;
 
-/* The closest point on a BVH (both layouts, every builder) to `point`.
+/* The closest point on a BVH (every layout and builder) to `point`.
  * The answer is the triangle at the smallest distance; among triangles at
  * exactly the same distance, the lowest source index, so the result is the
  * same for every builder, layout and thread count (distances are computed in
