@@ -104,6 +104,9 @@ AS_HD void as_cwbvh_trace(const as_cwbvh_node_t *AS_RESTRICT nodes, const as_tri
         const float sx = as_cwbvh_scale(ei & 0xffu), sy = as_cwbvh_scale((ei >> 8) & 0xffu),
                     sz = as_cwbvh_scale((ei >> 16) & 0xffu);
         uint32_t inner_hits = 0, leaf_hits = 0;
+#ifdef __CUDA_ARCH__
+#pragma unroll
+#endif
         for (int s = 0; s < 8; ++s) {
             const uint32_t meta = as_cwbvh_byte(&n, AS_CWBVH_W_META, s);
             if (meta == 0) continue;
@@ -123,10 +126,13 @@ AS_HD void as_cwbvh_trace(const as_cwbvh_node_t *AS_RESTRICT nodes, const as_tri
         /* The triangle group, nearest leaf first: it shortens tmax before
          * the children below are fetched and tested. */
         const uint32_t tri_base = n.w[AS_CWBVH_W_TRI];
+        /* The slot is known only at run time here: a shift of the meta
+         * bytes as one word, not an index into the node's registers. */
+        const uint64_t metas = (uint64_t)n.w[AS_CWBVH_W_META] | ((uint64_t)n.w[AS_CWBVH_W_META + 1] << 32);
         while (leaf_hits) {
             const uint32_t key = as_high_bit32(leaf_hits);
             leaf_hits &= ~(1u << key);
-            const uint32_t meta = as_cwbvh_byte(&n, AS_CWBVH_W_META, (int)(key ^ oct_inv));
+            const uint32_t meta = (uint32_t)(metas >> (8u * (key ^ oct_inv))) & 0xffu;
             if (as_bvh2_leaf(r, tris, tri_base + (meta & 31u), as_cwbvh_meta_count(meta), any_hit, hit, ctr)) return;
             tmax = AS_MINF(tmax, hit->t);
         }
