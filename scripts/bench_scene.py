@@ -34,6 +34,8 @@ VARIANTS = [
     ("bvh-sah", ["--structure", "bvh", "--builder", "sah"]),
     ("bvh-sbvh", ["--structure", "bvh", "--builder", "sbvh"]),
     ("bvh-sah-own", ["--structure", "bvh", "--builder", "sah", "--layout", "bvh2-own-bounds"]),
+    ("bvh-sah-cwbvh", ["--structure", "bvh", "--builder", "sah", "--layout", "cwbvh"]),
+    ("bvh-sbvh-cwbvh", ["--structure", "bvh", "--builder", "sbvh", "--layout", "cwbvh"]),
     ("kd-midcut", ["--structure", "kd", "--builder", "midcut"]),
     ("kd-sah", ["--structure", "kd", "--builder", "sah"]),
     ("kd-ropes-midcut", ["--structure", "kd", "--builder", "midcut", "--layout", "kd-ropes"]),
