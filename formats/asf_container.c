@@ -9,8 +9,10 @@
 
 #include "as_internal.h"
 #include "atomic_file.h"
+#include "task_pool.h"
 
 #include <inttypes.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <zstd.h>
@@ -53,6 +55,8 @@ static uint64_t align_up_64(uint64_t x)
     return (x + (ASF_SECTION_ALIGNMENT - 1)) & ~(uint64_t)(ASF_SECTION_ALIGNMENT - 1);
 }
 
+static void *aligned_buffer(uint64_t bytes, const char *what);
+
 /* ------------------------------------------------------------------------ */
 /* Writer                                                                   */
 
@@ -64,6 +68,7 @@ typedef struct asf_plan {
     size_t head_size;
     const void **stored;           /* per section: bytes to write */
     void **compressed;             /* per section: owned zstd frame or NULL */
+    uint8_t *csum;                 /* the CSUM section written last */
     asf_section_entry_t *entries;  /* aligned view into head */
     uint32_t count;
     uint64_t file_size;
@@ -74,6 +79,7 @@ static void plan_free(asf_plan_t *p)
     if (p->compressed)
         for (uint32_t i = 0; i < p->count; ++i) free(p->compressed[i]);
     free(p->compressed);
+    free(p->csum);
     free(p->stored);
     free(p->head);
     memset(p, 0, sizeof *p);
@@ -106,26 +112,140 @@ static as_error_t check_desc(const asf_section_desc_t *d, uint32_t i)
     return AS_OK;
 }
 
+/* ------------------------------------------------------------------------ */
+/* Chunk checksums (CSUM)                                                   */
+
+/* One XXH3-64 per fixed-size chunk, seeded with the section's index and the
+ * chunk's, so that chunks moved within or between sections do not verify.
+ * The chunks are fixed by the file, not by the thread count, so any number
+ * of threads computes the same hashes. */
+typedef struct chunk_job {
+    const uint8_t *const *data;    /* per covered section */
+    const uint64_t *size;
+    const uint64_t *first;         /* per covered section: index of its first hash */
+    uint32_t sections;
+    uint32_t chunk_log2;
+    uint64_t hash_count;
+    const uint64_t *expect;        /* reader: stored hashes; NULL when writing */
+    uint64_t *out;                 /* writer: computed hashes */
+    _Atomic uint64_t next;
+    _Atomic uint64_t first_bad;    /* reader: smallest mismatching hash index */
+} chunk_job_t;
+
+static uint64_t chunks_of(uint64_t bytes, uint32_t log2)
+{
+    return (bytes >> log2) + ((bytes & (((uint64_t)1 << log2) - 1)) != 0);
+}
+
+static void hash_chunks(void *user, unsigned thread, unsigned threads)
+{
+    (void)thread;
+    (void)threads;
+    chunk_job_t *j = user;
+    /* Batches of 8 chunks keep the shared counter cold. */
+    for (;;) {
+        const uint64_t begin = atomic_fetch_add(&j->next, 8);
+        if (begin >= j->hash_count) break;
+        const uint64_t end = begin + 8 < j->hash_count ? begin + 8 : j->hash_count;
+        uint32_t sct = 0;
+        while (sct + 1 < j->sections && j->first[sct + 1] <= begin) ++sct;
+        for (uint64_t k = begin; k < end; ++k) {
+            while (k >= j->first[sct] + chunks_of(j->size[sct], j->chunk_log2)) ++sct;
+            const uint64_t c = k - j->first[sct];
+            const uint64_t at = c << j->chunk_log2;
+            const uint64_t left = j->size[sct] - at;
+            const size_t n = (size_t)(left < ((uint64_t)1 << j->chunk_log2) ? left : ((uint64_t)1 << j->chunk_log2));
+            if (!j->data[sct]) continue; /* a section the reader skipped */
+            const uint64_t h = as_hash64_seeded(j->data[sct] + at, n, ((uint64_t)sct << 32) | c);
+            if (j->out) j->out[k] = h;
+            if (j->expect && h != j->expect[k]) {
+                uint64_t seen = atomic_load(&j->first_bad);
+                while (k < seen && !atomic_compare_exchange_weak(&j->first_bad, &seen, k)) {
+                }
+            }
+        }
+    }
+}
+
+/* Runs the job on every core, fewer when there are few chunks. */
+static void run_chunk_job(chunk_job_t *j)
+{
+    atomic_init(&j->next, 0);
+    atomic_init(&j->first_bad, UINT64_MAX);
+    const unsigned cores = as_thread_count(0);
+    const uint64_t batches = (j->hash_count + 7) / 8;
+    const unsigned threads = batches < cores ? (unsigned)(batches ? batches : 1) : cores;
+    if (threads <= 1)
+        hash_chunks(j, 0, 1);
+    else
+        as_parallel_run(threads, hash_chunks, j);
+}
+
+/* The CSUM section of the sections described: its head and hashes. */
+static as_error_t csum_build(const asf_section_desc_t *sections, uint32_t count, uint8_t **out, uint64_t *out_size)
+{
+    const uint32_t log2 = ASF_CSUM_CHUNK_LOG2;
+    const uint8_t **data = as_calloc(count ? count : 1, sizeof *data, "the CSUM plan");
+    uint64_t *size = as_calloc(count ? count : 1, sizeof *size, "the CSUM plan");
+    uint64_t *first = as_calloc(count ? count : 1, sizeof *first, "the CSUM plan");
+    if (!data || !size || !first) {
+        free(data);
+        free(size);
+        free(first);
+        return AS_ERROR_OUT_OF_MEMORY;
+    }
+    uint64_t total = 0;
+    for (uint32_t i = 0; i < count; ++i) {
+        data[i] = sections[i].data;
+        size[i] = sections[i].size;
+        first[i] = total;
+        total += chunks_of(size[i], log2);
+    }
+    const uint64_t bytes = sizeof(asf_csum_head_t) + total * 8;
+    uint8_t *buf = as_malloc((size_t)bytes, "the CSUM section");
+    if (!buf) {
+        free(data);
+        free(size);
+        free(first);
+        return AS_ERROR_OUT_OF_MEMORY;
+    }
+    const asf_csum_head_t head = {log2, count, total};
+    memcpy(buf, &head, sizeof head);
+    chunk_job_t job = {data, size, first, count, log2, total, NULL, (uint64_t *)(buf + sizeof head), 0, 0};
+    run_chunk_job(&job);
+    free(data);
+    free(size);
+    free(first);
+    *out = buf;
+    *out_size = bytes;
+    return AS_OK;
+}
+
 static as_error_t plan_build(const asf_section_desc_t *sections, uint32_t count, asf_plan_t *p)
 {
     memset(p, 0, sizeof *p);
-    if (count > ASF_MAX_SECTIONS)
+    /* One place is kept for the CSUM section every file ends with. */
+    if (count > ASF_MAX_SECTIONS - 1)
         return as_set_error(AS_ERROR_INVALID_ARGUMENT, "asf_write: %" PRIu32
-                            " sections, more than the %d readers accept", count, ASF_MAX_SECTIONS);
+                            " sections, more than the %d a file can hold beside its CSUM", count,
+                            ASF_MAX_SECTIONS - 1);
     if (count > 0 && !sections)
         return as_set_error(AS_ERROR_INVALID_ARGUMENT, "asf_write: no section descriptions");
     for (uint32_t i = 0; i < count; ++i) {
         const as_error_t err = check_desc(&sections[i], i);
         if (err != AS_OK) return err;
+        if (sections[i].tag == ASF_TAG_CSUM)
+            return as_set_error(AS_ERROR_INVALID_ARGUMENT, "asf_write: section index %" PRIu32
+                                " is a CSUM section: the writer adds it", i);
     }
 
-    p->count = count;
-    p->head_size = sizeof(asf_header_t) + (size_t)count * sizeof(asf_section_entry_t);
+    p->count = count + 1;
+    p->head_size = sizeof(asf_header_t) + (size_t)p->count * sizeof(asf_section_entry_t);
     /* calloc: padding and reserved fields must be zero. The table follows
      * the 64-byte header, so the entries are 8-byte aligned in place. */
     p->head = as_calloc(1, p->head_size, "the .asf header");
-    p->stored = as_calloc(count ? count : 1, sizeof *p->stored, "the .asf section list");
-    p->compressed = as_calloc(count ? count : 1, sizeof *p->compressed, "the .asf section list");
+    p->stored = as_calloc(p->count, sizeof *p->stored, "the .asf section list");
+    p->compressed = as_calloc(p->count, sizeof *p->compressed, "the .asf section list");
     if (!p->head || !p->stored || !p->compressed) {
         plan_free(p);
         return AS_ERROR_OUT_OF_MEMORY;
@@ -183,6 +303,22 @@ static as_error_t plan_build(const asf_section_desc_t *sections, uint32_t count,
         cursor = align_up_64(cursor + e->stored_size);
     }
     ZSTD_freeCCtx(cctx);
+
+    uint64_t csum_bytes = 0;
+    const as_error_t cerr = csum_build(sections, count, &p->csum, &csum_bytes);
+    if (cerr != AS_OK) {
+        plan_free(p);
+        return cerr;
+    }
+    asf_section_entry_t *ce = &p->entries[count];
+    ce->tag = ASF_TAG_CSUM;
+    ce->raw_size = ce->stored_size = csum_bytes;
+    ce->element_count = csum_bytes;
+    ce->stride = 1;
+    ce->checksum = as_hash64(p->csum, (size_t)csum_bytes);
+    ce->offset = cursor;
+    p->stored[count] = p->csum;
+    cursor = align_up_64(cursor + csum_bytes);
     /* The file ends padded to 64 too, so that every offset, even that of an
      * empty last section, lies within the file. */
     p->file_size = cursor;
@@ -193,11 +329,11 @@ static as_error_t plan_build(const asf_section_desc_t *sections, uint32_t count,
     h.version_major = ASF_VERSION_MAJOR;
     h.version_minor = ASF_VERSION_MINOR;
     h.header_size = sizeof(asf_header_t);
-    h.section_count = count;
+    h.section_count = p->count;
     h.section_entry_size = sizeof(asf_section_entry_t);
     h.section_table_offset = sizeof(asf_header_t);
     h.file_size = p->file_size;
-    h.table_checksum = as_hash64(p->entries, (size_t)count * sizeof(asf_section_entry_t));
+    h.table_checksum = as_hash64(p->entries, (size_t)p->count * sizeof(asf_section_entry_t));
     memcpy(p->head, &h, sizeof h);
     return AS_OK;
 }
@@ -219,13 +355,16 @@ as_error_t asf_write_memory(const asf_section_desc_t *sections, uint32_t count,
         return as_set_error(AS_ERROR_OUT_OF_MEMORY, "asf_write_memory: %" PRIu64
                             " bytes do not fit in memory", p.file_size);
     }
-    uint8_t *buf = as_calloc(1, (size_t)p.file_size, "an .asf file in memory");
+    /* 64-aligned like a mapping, so that a reader uses its raw sections in
+     * place; the file size is a multiple of 64 already. */
+    uint8_t *buf = aligned_buffer(p.file_size, "an .asf file in memory");
     if (!buf) {
         plan_free(&p);
         return AS_ERROR_OUT_OF_MEMORY;
     }
+    memset(buf, 0, (size_t)p.file_size);
     memcpy(buf, p.head, p.head_size);
-    for (uint32_t i = 0; i < count; ++i)
+    for (uint32_t i = 0; i < p.count; ++i)
         if (p.entries[i].stored_size)
             memcpy(buf + p.entries[i].offset, p.stored[i], (size_t)p.entries[i].stored_size);
     *out = buf;
@@ -243,7 +382,7 @@ as_error_t asf_write(const char *path, const asf_section_desc_t *sections, uint3
 
     /* Gathered, so that raw sections go from the caller's arrays straight to
      * the file: the header and table, then padding and data per section. */
-    as_file_part_t *parts = as_calloc(2 + 2 * (size_t)count, sizeof *parts, "the .asf write list");
+    as_file_part_t *parts = as_calloc(2 + 2 * (size_t)p.count, sizeof *parts, "the .asf write list");
     if (!parts) {
         plan_free(&p);
         return AS_ERROR_OUT_OF_MEMORY;
@@ -251,7 +390,7 @@ as_error_t asf_write(const char *path, const asf_section_desc_t *sections, uint3
     size_t n = 0;
     uint64_t at = p.head_size;
     parts[n++] = (as_file_part_t){p.head, p.head_size};
-    for (uint32_t i = 0; i < count; ++i) {
+    for (uint32_t i = 0; i < p.count; ++i) {
         const asf_section_entry_t *e = &p.entries[i];
         if (e->offset > at) parts[n++] = (as_file_part_t){zero_padding, (size_t)(e->offset - at)};
         parts[n++] = (as_file_part_t){p.stored[i], (size_t)e->stored_size};
@@ -505,16 +644,91 @@ static as_error_t load_zstd(asf_file_t *f, uint32_t i, ZSTD_DCtx **dctx)
     return AS_OK;
 }
 
+/* Verifies every covered section chunk by chunk on every core, against the
+ * CSUM section at index `ci` (the last), whose own checksum is verified first. */
+static as_error_t csum_verify(asf_file_t *f, uint32_t ci)
+{
+    const asf_section_entry_t *ce = &f->entries[ci];
+    const uint8_t *cs = f->section_data[ci];
+    const uint64_t own = as_hash64(cs, (size_t)ce->raw_size);
+    if (own != ce->checksum)
+        return as_set_error(AS_ERROR_CHECKSUM, SECTION_FMT "checksum mismatch (stored 0x%016" PRIx64
+                            ", computed 0x%016" PRIx64 ")", SECTION_ARGS(f, ce, ci), ce->checksum, own);
+    asf_csum_head_t head;
+    if (ce->raw_size < sizeof head)
+        return as_set_error(AS_ERROR_CORRUPT, SECTION_FMT "%" PRIu64 " bytes, shorter than its 16-byte head",
+                            SECTION_ARGS(f, ce, ci), ce->raw_size);
+    memcpy(&head, cs, sizeof head);
+    if (head.chunk_log2 < ASF_CSUM_MIN_CHUNK_LOG2 || head.chunk_log2 > ASF_CSUM_MAX_CHUNK_LOG2)
+        return as_set_error(AS_ERROR_CORRUPT, SECTION_FMT "chunk_log2 %" PRIu32 " (byte 0 of the section) is not "
+                            "in %u..%u", SECTION_ARGS(f, ce, ci), head.chunk_log2, ASF_CSUM_MIN_CHUNK_LOG2,
+                            ASF_CSUM_MAX_CHUNK_LOG2);
+    if (head.covered_sections != ci)
+        return as_set_error(AS_ERROR_CORRUPT, SECTION_FMT "covers %" PRIu32 " sections (byte 4 of the section), "
+                            "not the %" PRIu32 " before it", SECTION_ARGS(f, ce, ci), head.covered_sections, ci);
+    uint64_t *size = as_calloc(ci ? ci : 1, sizeof *size, "the CSUM check");
+    uint64_t *first = as_calloc(ci ? ci : 1, sizeof *first, "the CSUM check");
+    const uint8_t **data = as_calloc(ci ? ci : 1, sizeof *data, "the CSUM check");
+    as_error_t err = AS_OK;
+    if (!size || !first || !data) {
+        err = AS_ERROR_OUT_OF_MEMORY;
+        goto done;
+    }
+    uint64_t total = 0;
+    for (uint32_t i = 0; i < ci; ++i) {
+        size[i] = f->entries[i].raw_size;
+        first[i] = total;
+        data[i] = f->section_data[i]; /* NULL for a skipped section: not checked */
+        total += chunks_of(size[i], head.chunk_log2);
+    }
+    if (head.hash_count != total || (ce->raw_size - sizeof head) / 8 != total || (ce->raw_size - sizeof head) % 8) {
+        err = as_set_error(AS_ERROR_CORRUPT, SECTION_FMT "hash_count %" PRIu64 " (byte 8 of the section) and size %"
+                           PRIu64 " do not match the %" PRIu64 " chunks of %" PRIu64 " bytes in the sections before it",
+                           SECTION_ARGS(f, ce, ci), head.hash_count, ce->raw_size, total,
+                           (uint64_t)1 << head.chunk_log2);
+        goto done;
+    }
+    chunk_job_t job = {data, size, first, ci, head.chunk_log2, total, (const uint64_t *)(cs + sizeof head), NULL, 0, 0};
+    run_chunk_job(&job);
+    const uint64_t bad = atomic_load(&job.first_bad);
+    if (bad != UINT64_MAX) {
+        uint32_t i = 0;
+        while (i + 1 < ci && first[i + 1] <= bad) ++i;
+        const uint64_t c = bad - first[i];
+        const uint64_t at = c << head.chunk_log2;
+        const uint64_t end = at + ((uint64_t)1 << head.chunk_log2) < size[i] ? at + ((uint64_t)1 << head.chunk_log2)
+                                                                            : size[i];
+        const asf_section_entry_t *e = &f->entries[i];
+        err = as_set_error(AS_ERROR_CHECKSUM, SECTION_FMT "checksum mismatch in bytes %" PRIu64 "..%" PRIu64
+                           " of the section (chunk %" PRIu64 " in CSUM)", SECTION_ARGS(f, e, i), at, end, c);
+        goto done;
+    }
+    for (uint32_t i = 0; i < ci; ++i) f->verified[i] = data[i] != NULL;
+    f->verified[ci] = 1;
+done:
+    free(size);
+    free(first);
+    free(data);
+    return err;
+}
+
 static as_error_t load_sections(asf_file_t *f, const asf_open_args_t *args)
 {
     const uint32_t count = f->header.section_count;
+    /* A CSUM section, always the last, replaces the sequential pass over each
+     * section by a parallel one over its chunks. */
+    for (uint32_t i = 0; i + 1 < count; ++i)
+        if (f->entries[i].tag == ASF_TAG_CSUM)
+            return as_set_error(AS_ERROR_CORRUPT, SECTION_FMT "a CSUM section must be the last of the table",
+                                SECTION_ARGS(f, &f->entries[i], i));
+    const int has_csum = count > 0 && f->entries[count - 1].tag == ASF_TAG_CSUM;
     ZSTD_DCtx *dctx = NULL;
     as_error_t err = AS_OK;
     for (uint32_t i = 0; i < count && err == AS_OK; ++i) {
         const asf_section_entry_t *e = &f->entries[i];
         /* Unknown optional sections are skipped: not decompressed, not
          * verified, no data; their entry stays visible. */
-        if (!tag_known(args, e->tag)) continue;
+        if (!tag_known(args, e->tag) && e->tag != ASF_TAG_CSUM) continue;
         if (e->flags & ASF_SECTION_ZSTD) {
             err = load_zstd(f, i, &dctx);
             if (err != AS_OK) break;
@@ -533,7 +747,7 @@ static as_error_t load_sections(asf_file_t *f, const asf_open_args_t *args)
             f->owned[i] = copy;
             f->section_data[i] = copy;
         }
-        if (args->verify_checksums) {
+        if (args->verify_checksums && !has_csum) {
             const uint64_t computed = as_hash64(f->section_data[i], (size_t)e->raw_size);
             if (computed != e->checksum) {
                 err = as_set_error(AS_ERROR_CHECKSUM, SECTION_FMT "checksum mismatch (stored 0x%016" PRIx64
@@ -545,6 +759,7 @@ static as_error_t load_sections(asf_file_t *f, const asf_open_args_t *args)
         }
     }
     ZSTD_freeDCtx(dctx);
+    if (err == AS_OK && args->verify_checksums && has_csum) err = csum_verify(f, count - 1);
     return err;
 }
 

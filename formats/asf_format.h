@@ -10,7 +10,7 @@
 
 #define ASF_MAGIC_BYTES "\x89" "ASF\r\n\x1a\n"  /* 8 bytes, PNG-style */
 #define ASF_VERSION_MAJOR 1
-#define ASF_VERSION_MINOR 0
+#define ASF_VERSION_MINOR 1
 #define ASF_SECTION_ALIGNMENT 64  /* every section offset is a multiple */
 #define ASF_MAX_SECTIONS 1024     /* a limit readers impose */
 
@@ -34,6 +34,19 @@
 #define ASF_TAG_KDRP ASF_TAG('K', 'D', 'R', 'P') /* as_kd_ropes_t[], six ropes per KD leaf */
 #define ASF_TAG_KDLB ASF_TAG('K', 'D', 'L', 'B') /* as_kd_leaf_box_t[], KD leaf boxes */
 #define ASF_TAG_BREC ASF_TAG('B', 'R', 'E', 'C') /* as_build_record_t, optional */
+#define ASF_TAG_CSUM ASF_TAG('C', 'S', 'U', 'M') /* chunk checksums of the other sections, optional (1.1) */
+
+/* CSUM: a 16-byte head, then one XXH3-64 per chunk of every other section,
+ * in table order (SPEC.md 3.16). */
+#define ASF_CSUM_CHUNK_LOG2 20u       /* what writers use: 1 MiB chunks */
+#define ASF_CSUM_MIN_CHUNK_LOG2 16u   /* what readers accept */
+#define ASF_CSUM_MAX_CHUNK_LOG2 30u
+typedef struct asf_csum_head {
+    uint32_t chunk_log2;
+    uint32_t covered_sections;     /* the sections before CSUM in the table: all others */
+    uint64_t hash_count;
+} asf_csum_head_t;
+_Static_assert(sizeof(asf_csum_head_t) == 16, "CSUM head is 16 bytes");
 
 /* Section flags. */
 #define ASF_SECTION_REQUIRED 0x1u   /* a reader that does not know the tag must refuse */

@@ -136,6 +136,21 @@ static void asf_seeds(void)
     put(d, "zstd_damaged", 0x03, f, size);
     free(f);
 
+    /* Container 1.1: the CSUM section every file now ends with (entry 3),
+     * intact, with a damaged chunk, and with a damaged head. */
+    f = container(0, 16, &size);
+    asf_section_entry_t *csum = entry(f, 3);
+    if (csum->tag != ASF_TAG_CSUM) die("the seed container has no CSUM section");
+    put(d, "csum_valid", 0x01, f, size);
+    f[entry(f, 1)->offset + 3] ^= 0x20;
+    put(d, "csum_chunk_mismatch", 0x01, f, size);
+    f[entry(f, 1)->offset + 3] ^= 0x20;
+    f[csum->offset] = 40; /* chunk_log2 out of range */
+    csum->checksum = as_hash64(f + csum->offset, (size_t)csum->raw_size);
+    fix_table(f);
+    put(d, "csum_bad_head", 0x01, f, size);
+    free(f);
+
     void *empty;
     if (asf_write_memory(NULL, 0, &empty, &size) != AS_OK) die("asf_write_memory");
     put(d, "no_sections", 0x01, empty, size);

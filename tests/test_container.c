@@ -82,6 +82,26 @@ static uint8_t *sample_file(int level, size_t *size)
     return buf;
 }
 
+/* The same file as a 1.0 writer made it: no CSUM, so that the reader
+ * verifies each section's own checksum. CSUM is the last section, so
+ * cutting the file at its offset leaves a valid 1.0 file. */
+static uint8_t *sample_file_1_0(int level, size_t *size)
+{
+    uint8_t *file = sample_file(level, size);
+    asf_header_t *h = (asf_header_t *)file;
+    const asf_section_entry_t *csum = (const asf_section_entry_t *)(file + 64 + 64 * (size_t)(h->section_count - 1));
+    if (csum->tag != ASF_TAG_CSUM) {
+        fprintf(stderr, "sample_file: the last section is not CSUM\n");
+        exit(1);
+    }
+    *size = (size_t)csum->offset;
+    h->file_size = csum->offset;
+    h->version_minor = 0;
+    h->section_count -= 1;
+    h->table_checksum = as_hash64(file + 64, (size_t)h->section_count * 64);
+    return file;
+}
+
 static const uint32_t known[] = {ASF_TAG_META, ASF_TAG_BVH2, ASF_TAG_TRI4};
 static const asf_open_args_t verify = {1, known, 3};
 static const asf_open_args_t no_verify = {0, known, 3};
@@ -117,7 +137,8 @@ static void expect_refused(const uint8_t *file, size_t size, const asf_open_args
 
 static void check_sections_match(const asf_file_t *f)
 {
-    CHECK_EQ_U64(asf_section_count(f), 3);
+    CHECK_EQ_U64(asf_section_count(f), 4);
+    CHECK_EQ_INT(asf_find_section(f, ASF_TAG_CSUM), 3);
     const void *want[3] = {&meta, nodes, tris};
     const size_t size[3] = {sizeof meta, sizeof nodes, sizeof tris};
     for (uint32_t i = 0; i < 3; ++i) {
@@ -146,8 +167,9 @@ static void writer_lays_out_header_table_and_aligned_sections(void)
     CHECK_EQ_INT(h->section_entry_size, 64);
     CHECK_EQ_U64(h->section_table_offset, 64);
     CHECK_EQ_U64(h->file_size, size);
-    CHECK_EQ_U64(h->table_checksum, as_hash64(file + 64, 3 * 64));
-    uint64_t end = 64 + 3 * 64;
+    CHECK_EQ_INT(h->section_count, 4);
+    CHECK_EQ_U64(h->table_checksum, as_hash64(file + 64, 4 * 64));
+    uint64_t end = 64 + 4 * 64;
     for (uint32_t i = 0; i < 3; ++i) {
         const asf_section_entry_t *e = entry_of(file, i);
         CHECK_EQ_U64(e->offset % 64, 0);
@@ -157,6 +179,27 @@ static void writer_lays_out_header_table_and_aligned_sections(void)
         CHECK_EQ_INT(e->flags, ASF_SECTION_REQUIRED);
         CHECK_EQ_U64(e->checksum, as_hash64(file + e->offset, (size_t)e->raw_size));
         end = e->offset + e->stored_size;
+    }
+    /* Last, CSUM: optional, raw, one hash per 1 MiB chunk of each section
+     * (one each here), seeded with the section's index and the chunk's. */
+    const asf_section_entry_t *c = entry_of(file, 3);
+    CHECK_EQ_U64(c->tag, ASF_TAG_CSUM);
+    CHECK_EQ_INT(c->flags, 0);
+    CHECK(c->offset >= end && c->offset % 64 == 0);
+    CHECK_EQ_U64(c->raw_size, 16 + 3 * 8);
+    CHECK_EQ_U64(c->stored_size, c->raw_size);
+    CHECK_EQ_U64(c->checksum, as_hash64(file + c->offset, (size_t)c->raw_size));
+    asf_csum_head_t head;
+    memcpy(&head, file + c->offset, sizeof head);
+    CHECK_EQ_INT(head.chunk_log2, 20);
+    CHECK_EQ_INT(head.covered_sections, 3);
+    CHECK_EQ_U64(head.hash_count, 3);
+    const void *data[3] = {&meta, nodes, tris};
+    const size_t bytes[3] = {sizeof meta, sizeof nodes, sizeof tris};
+    for (uint32_t i = 0; i < 3; ++i) {
+        uint64_t stored;
+        memcpy(&stored, file + c->offset + 16 + 8 * i, 8);
+        CHECK_EQ_U64(stored, as_hash64_seeded(data[i], bytes[i], (uint64_t)i << 32));
     }
     CHECK_EQ_U64(size % 64, 0);
     free(file);
@@ -170,7 +213,7 @@ static void round_trip_in_memory_uncompressed(void)
     CHECK(f != NULL);
     if (f) {
         check_sections_match(f);
-        for (uint32_t i = 0; i < 3; ++i) CHECK_EQ_INT(asf_section_checksum_verified(f, i), 1);
+        for (uint32_t i = 0; i < 4; ++i) CHECK_EQ_INT(asf_section_checksum_verified(f, i), 1);
         /* Raw sections of a 64-aligned buffer are used in place. */
         CHECK(asf_section_data(f, 1) == file + entry_of(file, 1)->offset);
         CHECK_EQ_U64(asf_size(f), size);
@@ -279,10 +322,10 @@ static void empty_container_and_empty_section_round_trip(void)
     void *buf = NULL;
     size_t size = 0;
     CHECK_EQ_INT(asf_write_memory(NULL, 0, &buf, &size), AS_OK);
-    CHECK_EQ_U64(size, 64);
+    CHECK_EQ_U64(size, 64 + 64 + 64); /* header, CSUM's entry, its 16 bytes padded */
     asf_file_t *f = asf_open_memory(buf, size, "empty.asf", &verify);
     CHECK(f != NULL);
-    if (f) CHECK_EQ_U64(asf_section_count(f), 0);
+    if (f) CHECK_EQ_U64(asf_section_count(f), 1);
     asf_close(f);
     free(buf);
 
@@ -318,13 +361,13 @@ static void reader_accepts_newer_minor_with_longer_header_and_entries(void)
     size_t size;
     uint8_t *file = sample_file(0, &size);
     const asf_section_entry_t *e = entry_of(file, 1);
-    /* Version 1.1 as a future writer might make it: 128-byte header and
-     * entries whose extra bytes a 1.0 reader ignores. */
+    /* A newer minor version as a future writer might make it: 128-byte
+     * header and entries whose extra bytes this reader ignores. */
     const size_t out_size = 256 + (size_t)((e->raw_size + 63) / 64 * 64);
     uint8_t *out = calloc(1, out_size);
     memcpy(out, file, 64);
     asf_header_t *h = header_of(out);
-    h->version_minor = 1;
+    h->version_minor = ASF_VERSION_MINOR + 1;
     h->header_size = 128;
     h->section_entry_size = 128;
     h->section_count = 1;
@@ -339,7 +382,7 @@ static void reader_accepts_newer_minor_with_longer_header_and_entries(void)
     asf_file_t *f = asf_open_memory(out, out_size, "sample.asf", &verify);
     CHECK(f != NULL);
     if (f) {
-        CHECK_EQ_INT(asf_header(f)->version_minor, 1);
+        CHECK_EQ_INT(asf_header(f)->version_minor, ASF_VERSION_MINOR + 1);
         CHECK(memcmp(asf_section_data(f, 0), nodes, sizeof nodes) == 0);
     }
     asf_close(f);
@@ -362,7 +405,7 @@ static void reader_rejects_newer_major_version(void)
     uint8_t *file = sample_file(0, &size);
     header_of(file)->version_major = 2;
     expect_refused(file, size, &verify, AS_ERROR_VERSION,
-                   "sample.asf: container version 2.0 is newer than this reader (1.x)");
+                   "sample.asf: container version 2.1 is newer than this reader (1.x)");
     free(file);
 }
 
@@ -454,7 +497,7 @@ static void reader_rejects_table_past_end(void)
     uint8_t *file = sample_file(0, &size);
     header_of(file)->section_table_offset = UINT64_MAX - 7;
     expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "section table (offset 18446744073709551608, "
-                   "3 entries of 64 bytes) extends past the end of the file");
+                   "4 entries of 64 bytes) extends past the end of the file");
     header_of(file)->section_table_offset = 64;
     header_of(file)->section_count = 1000;
     expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "extends past the end of the file");
@@ -486,7 +529,7 @@ static void reader_rejects_table_checksum_mismatch(void)
     entry_of(file, 1)->stride = 32; /* consistent on its own, but the table changed */
     entry_of(file, 1)->element_count *= 2;
     char want[200];
-    snprintf(want, sizeof want, "section table (offset 64, 192 bytes): checksum mismatch (stored 0x%016" PRIx64,
+    snprintf(want, sizeof want, "section table (offset 64, 256 bytes): checksum mismatch (stored 0x%016" PRIx64,
              header_of(file)->table_checksum);
     expect_refused(file, size, &verify, AS_ERROR_CHECKSUM, want);
     /* Not switched off with the section checksums: the table is the map of
@@ -501,7 +544,7 @@ static void reader_rejects_unknown_flag_bit(void)
     uint8_t *file = sample_file(0, &size);
     entry_of(file, 0)->flags |= 0x80;
     fix_table(file);
-    expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "section META (index 0, offset 256): unknown flag bits 0x80");
+    expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "section META (index 0, offset 320): unknown flag bits 0x80");
     free(file);
 }
 
@@ -599,7 +642,7 @@ static void reader_skips_unknown_optional_section(void)
     asf_file_t *f = asf_open_memory(file, size, "sample.asf", &verify);
     CHECK(f != NULL);
     if (f) {
-        CHECK_EQ_U64(asf_section_count(f), 3);
+        CHECK_EQ_U64(asf_section_count(f), 4);
         CHECK_EQ_INT(asf_find_section(f, ASF_TAG('X', 'T', 'R', 'A')), 2);
         CHECK(asf_section_data(f, 2) == NULL);
         CHECK_EQ_INT(asf_section_checksum_verified(f, 2), 0);
@@ -609,10 +652,10 @@ static void reader_skips_unknown_optional_section(void)
     free(file);
 }
 
-static void reader_rejects_section_checksum_mismatch(void)
+static void reader_rejects_section_checksum_mismatch_in_a_1_0_file(void)
 {
     size_t size;
-    uint8_t *file = sample_file(3, &size);
+    uint8_t *file = sample_file_1_0(3, &size);
     asf_section_entry_t *tri = entry_of(file, 2);
     file[tri->offset + 5] ^= 0x10;
     char want[200];
@@ -627,6 +670,130 @@ static void reader_rejects_section_checksum_mismatch(void)
     fix_table(file);
     expect_refused(file, size, &verify, AS_ERROR_CHECKSUM, "section BVH2 (index 1, offset");
     free(file);
+}
+
+/* A 2.5 MiB section: chunks 0 and 1 full, chunk 2 half. */
+enum { BIG_BYTES = 5 << 19 };
+static uint8_t *big_file(size_t *size)
+{
+    static uint8_t big[BIG_BYTES];
+    for (size_t i = 0; i < sizeof big; ++i) big[i] = (uint8_t)(i * 2654435761u >> 13);
+    asf_section_desc_t desc[2];
+    asf_section_desc_t tmp[3];
+    make_sample(tmp, 0);
+    desc[0] = tmp[0];
+    desc[1] = (asf_section_desc_t){ASF_TAG_TRI4, ASF_SECTION_REQUIRED, big, sizeof big, sizeof big / 64, 64, 0};
+    void *buf = NULL;
+    if (asf_write_memory(desc, 2, &buf, size) != AS_OK) {
+        fprintf(stderr, "asf_write_memory: %s\n", as_get_error_message());
+        exit(1);
+    }
+    return buf;
+}
+
+/* After editing CSUM's bytes, so that its own checksum and the table pass. */
+static void fix_csum(uint8_t *file, uint32_t index)
+{
+    asf_section_entry_t *c = entry_of(file, index);
+    c->checksum = as_hash64(file + c->offset, (size_t)c->raw_size);
+    fix_table(file);
+}
+
+static void reader_rejects_chunk_checksum_mismatch_naming_the_bytes(void)
+{
+    size_t size;
+    uint8_t *file = big_file(&size);
+    CHECK_EQ_U64(entry_of(file, 2)->raw_size, 16 + 8 * (1 + 3));
+    asf_file_t *f = asf_open_memory(file, size, "sample.asf", &verify);
+    CHECK(f != NULL);
+    if (f)
+        for (uint32_t i = 0; i < 3; ++i) CHECK_EQ_INT(asf_section_checksum_verified(f, i), 1);
+    asf_close(f);
+
+    const asf_section_entry_t *tri = entry_of(file, 1);
+    file[tri->offset + (1u << 20) + 12345] ^= 4;
+    char want[200];
+    snprintf(want, sizeof want, "sample.asf: section TRI4 (index 1, offset %" PRIu64 "): checksum mismatch in "
+             "bytes 1048576..2097152 of the section (chunk 1 in CSUM)", tri->offset);
+    expect_refused(file, size, &verify, AS_ERROR_CHECKSUM, want);
+    file[tri->offset + (1u << 20) + 12345] ^= 4;
+    file[tri->offset + BIG_BYTES - 1] ^= 4;
+    expect_refused(file, size, &verify, AS_ERROR_CHECKSUM, "bytes 2097152..2621440 of the section (chunk 2 in CSUM)");
+    /* CSUM stands in for the sections' own checksums, but not for its own. */
+    file[tri->offset + BIG_BYTES - 1] ^= 4;
+    file[entry_of(file, 2)->offset + 20] ^= 1;
+    expect_refused(file, size, &verify, AS_ERROR_CHECKSUM, "section CSUM (index 2, offset");
+    free(file);
+}
+
+static void reader_rejects_chunk_hashes_exchanged(void)
+{
+    /* Two chunks and their hashes swapped together: each chunk still has its
+     * own hash, but the seed says where it belongs. */
+    size_t size;
+    uint8_t *file = big_file(&size);
+    const asf_section_entry_t *tri = entry_of(file, 1);
+    uint8_t *a = file + tri->offset, *b = file + tri->offset + (1u << 20);
+    for (size_t i = 0; i < (1u << 20); ++i) {
+        const uint8_t t = a[i];
+        a[i] = b[i];
+        b[i] = t;
+    }
+    uint8_t *hashes = file + entry_of(file, 2)->offset + 16;
+    uint64_t h1, h2;
+    memcpy(&h1, hashes + 8, 8);
+    memcpy(&h2, hashes + 16, 8);
+    memcpy(hashes + 8, &h2, 8);
+    memcpy(hashes + 16, &h1, 8);
+    fix_csum(file, 2);
+    expect_refused(file, size, &verify, AS_ERROR_CHECKSUM, "bytes 0..1048576 of the section (chunk 0 in CSUM)");
+    free(file);
+}
+
+static void reader_rejects_malformed_csum(void)
+{
+    size_t size;
+    uint8_t *file = big_file(&size);
+    asf_section_entry_t *c = entry_of(file, 2);
+    asf_csum_head_t *head = (asf_csum_head_t *)(file + c->offset);
+    const asf_csum_head_t good = *head;
+
+    head->chunk_log2 = 12;
+    fix_csum(file, 2);
+    expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "chunk_log2 12 (byte 0 of the section) is not in 16..30");
+    *head = good;
+    head->covered_sections = 1;
+    fix_csum(file, 2);
+    expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "covers 1 sections (byte 4 of the section), not the 2");
+    *head = good;
+    head->hash_count = 5;
+    fix_csum(file, 2);
+    expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "hash_count 5 (byte 8 of the section)");
+    /* 2 MiB chunks: the right count is 1 + 2, not the 4 hashes stored. */
+    *head = good;
+    head->chunk_log2 = 21;
+    fix_csum(file, 2);
+    expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "do not match the 3 chunks of 2097152 bytes");
+    *head = good;
+    fix_csum(file, 2);
+    /* Anywhere but last. */
+    entry_of(file, 0)->tag = ASF_TAG_CSUM;
+    entry_of(file, 0)->flags = 0;
+    fix_table(file);
+    expect_refused(file, size, &verify, AS_ERROR_CORRUPT, "section CSUM (index 0, offset 256): a CSUM section must "
+                   "be the last of the table");
+    free(file);
+}
+
+static void writer_refuses_a_csum_section_from_the_caller(void)
+{
+    const uint8_t bytes[16] = {20};
+    const asf_section_desc_t desc = {ASF_TAG_CSUM, 0, bytes, 16, 16, 1, 0};
+    void *buf = NULL;
+    size_t size = 0;
+    CHECK_EQ_INT(asf_write_memory(&desc, 1, &buf, &size), AS_ERROR_INVALID_ARGUMENT);
+    CHECK_STR_CONTAINS(as_get_error_message(), "section index 0 is a CSUM section: the writer adds it");
+    CHECK(buf == NULL);
 }
 
 static void reader_skips_checksums_when_not_asked(void)
@@ -698,7 +865,7 @@ static void reader_rejects_skippable_frame_as_section(void)
     entry_of(file, 0)->raw_size = 0;
     entry_of(file, 0)->element_count = 0;
     fix_table(file);
-    expect_refused(file, size, &no_verify, AS_ERROR_CORRUPT, "section TRI4 (index 0, offset 128): not a zstd frame");
+    expect_refused(file, size, &no_verify, AS_ERROR_CORRUPT, "section TRI4 (index 0, offset 192): not a zstd frame");
     free(file);
 }
 
@@ -743,7 +910,11 @@ int main(void)
     RUN_TEST(reader_rejects_inconsistent_sizes);
     RUN_TEST(reader_refuses_unknown_required_section);
     RUN_TEST(reader_skips_unknown_optional_section);
-    RUN_TEST(reader_rejects_section_checksum_mismatch);
+    RUN_TEST(reader_rejects_section_checksum_mismatch_in_a_1_0_file);
+    RUN_TEST(reader_rejects_chunk_checksum_mismatch_naming_the_bytes);
+    RUN_TEST(reader_rejects_chunk_hashes_exchanged);
+    RUN_TEST(reader_rejects_malformed_csum);
+    RUN_TEST(writer_refuses_a_csum_section_from_the_caller);
     RUN_TEST(reader_skips_checksums_when_not_asked);
     RUN_TEST(reader_rejects_damaged_zstd_frame);
     RUN_TEST(reader_refuses_zstd_section_claiming_impossible_ratio);

@@ -473,6 +473,7 @@ static const char *section_purpose(const as_structure_t *s, uint32_t tag)
 {
     if (tag == ASF_TAG_META) return "writer, structure kind, layout and build parameters";
     if (tag == ASF_TAG_BREC) return "build time and threads, as the builder recorded them (optional)";
+    if (tag == ASF_TAG_CSUM) return "checksums of 1 MiB chunks of the other sections, verified on every core (optional)";
     const as_layout_ops_t *ops = as_structure_ops(s);
     for (uint32_t i = 0; i < ops->section_count; ++i)
         if (ops->sections[i].tag == tag) return ops->sections[i].purpose;

@@ -42,9 +42,9 @@ refused_by_both "one byte appended" "$WORK/long.asf" 3 "file_size at offset 32 s
 patch "$GOOD" "$WORK/h.asf" 0 flip
 refused_by_both "magic damaged" "$WORK/h.asf" 3 "not an .asf file \\(bad magic at offset 0\\) \\[CORRUPT\\]"
 patch "$GOOD" "$WORK/h.asf" 8 0200
-refused_by_both "major version 2" "$WORK/h.asf" 5 "container version 2\\.0 is newer than this reader \\(1\\.x\\) \\[VERSION\\]"
+refused_by_both "major version 2" "$WORK/h.asf" 5 "container version 2\\.1 is newer than this reader \\(1\\.x\\) \\[VERSION\\]"
 patch "$GOOD" "$WORK/h.asf" 8 0000
-refused_by_both "major version 0" "$WORK/h.asf" 3 "container version 0\\.0 at offset 8 was never defined \\[CORRUPT\\]"
+refused_by_both "major version 0" "$WORK/h.asf" 3 "container version 0\\.1 at offset 8 was never defined \\[CORRUPT\\]"
 patch "$GOOD" "$WORK/h.asf" 12 flip
 refused_by_both "header_size damaged" "$WORK/h.asf" 3 "header_size [0-9]+ at offset 12 .*\\[CORRUPT\\]"
 patch "$GOOD" "$WORK/h.asf" 16 ff
@@ -52,14 +52,14 @@ refused_by_both "section_count damaged" "$WORK/h.asf" 3 "\\[(CORRUPT|CHECKSUM)\\
 patch "$GOOD" "$WORK/h.asf" 32 4000000000000000
 refused_by_both "file_size says 64 bytes" "$WORK/h.asf" 3 "file_size at offset 32 says 64 bytes, file has $SIZE \\[CORRUPT\\]"
 patch "$GOOD" "$WORK/h.asf" 40 flip
-refused_by_both "table_checksum damaged" "$WORK/h.asf" 3 "section table \\(offset 64, 192 bytes\\): checksum mismatch.*\\[CHECKSUM\\]"
+refused_by_both "table_checksum damaged" "$WORK/h.asf" 3 "section table \\(offset 64, 256 bytes\\): checksum mismatch.*\\[CHECKSUM\\]"
 patch "$GOOD" "$WORK/h.asf" 50 01
 refused_by_both "reserved header byte set" "$WORK/h.asf" 3 "reserved header byte at offset 50 .*\\[CORRUPT\\]"
 
 # Section table (entries of 64 bytes from offset 64; SPEC.md 2.3).
 for off in 64 68 $((64 + 64 + 8)) $((64 + 64 + 16)) $((64 + 128 + 40)) $((64 + 128 + 48)); do
     patch "$GOOD" "$WORK/t.asf" "$off" flip
-    refused_by_both "section table byte $off damaged" "$WORK/t.asf" 3 "section table \\(offset 64, 192 bytes\\): checksum mismatch.*\\[CHECKSUM\\]"
+    refused_by_both "section table byte $off damaged" "$WORK/t.asf" 3 "section table \\(offset 64, 256 bytes\\): checksum mismatch.*\\[CHECKSUM\\]"
 done
 
 # Section contents: caught by their checksums.
