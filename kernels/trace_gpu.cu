@@ -237,8 +237,11 @@ namespace {
 // copy one into a buffer while the other buffer's upload runs, and upload
 // it asynchronously. Copies from the page cache and uploads over PCIe then
 // overlap on every thread, and no thread waits for another.
-constexpr size_t kChunk = 8u << 20;
+// Defaults from docs/results/2026-11-22-load-validation-heat-h100.md: four
+// threads and 8 MiB buffers; other settings are measured through
+// as_trace_args_t.upload_threads and upload_chunk_mib.
 constexpr unsigned kPipeThreads = 4;
+constexpr unsigned kPipeChunkMiB = 8;
 
 struct pipe_chunk {
     int section;
@@ -250,7 +253,10 @@ struct pipe_job {
     void *const *device;
     const void *const *host;
     std::vector<pipe_chunk> chunks;
+    unsigned char *arena = nullptr; // two pinned buffers per thread, one allocation
+    size_t chunk_bytes = 0;
     std::atomic<size_t> next{0};
+    std::atomic<unsigned> slot{0};
     std::atomic<int> failed{0};
     cudaError_t error = cudaSuccess;
     const char *what = nullptr;
@@ -268,14 +274,12 @@ void pipe_fail(pipe_job *job, cudaError_t e, const char *what)
 
 void pipe_worker(pipe_job *job)
 {
-    void *buf[2] = {nullptr, nullptr};
+    const unsigned me = job->slot.fetch_add(1);
+    void *buf[2] = {job->arena + (2 * (size_t)me) * job->chunk_bytes, job->arena + (2 * (size_t)me + 1) * job->chunk_bytes};
     cudaEvent_t ev[2] = {nullptr, nullptr};
     cudaStream_t stream = nullptr;
     cudaError_t e = cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking);
-    for (int b = 0; b < 2 && e == cudaSuccess; ++b) {
-        e = cudaHostAlloc(&buf[b], kChunk, cudaHostAllocDefault);
-        if (e == cudaSuccess) e = cudaEventCreateWithFlags(&ev[b], cudaEventDisableTiming);
-    }
+    for (int b = 0; b < 2 && e == cudaSuccess; ++b) e = cudaEventCreateWithFlags(&ev[b], cudaEventDisableTiming);
     if (e != cudaSuccess) pipe_fail(job, e, "pinned pipeline set-up");
     for (size_t k = 0; e == cudaSuccess && !job->failed.load();) {
         const size_t i = job->next.fetch_add(1);
@@ -295,22 +299,28 @@ void pipe_worker(pipe_job *job)
         if (e == cudaSuccess) e = s2;
     }
     if (e != cudaSuccess) pipe_fail(job, e, "pipelined upload");
-    for (int b = 0; b < 2; ++b) {
-        if (buf[b]) cudaFreeHost(buf[b]);
+    for (int b = 0; b < 2; ++b)
         if (ev[b]) cudaEventDestroy(ev[b]);
-    }
     if (stream) cudaStreamDestroy(stream);
 }
 
-as_error_t upload_pinned_pipeline(void *const *device, const void *const *host, const uint64_t *bytes, int count)
+as_error_t upload_pinned_pipeline(void *const *device, const void *const *host, const uint64_t *bytes, int count,
+                                  unsigned want_threads, unsigned chunk_mib)
 {
     pipe_job job;
     job.device = device;
     job.host = host;
+    job.chunk_bytes = (size_t)(chunk_mib ? std::min(chunk_mib, 256u) : kPipeChunkMiB) << 20;
     for (int sct = 0; sct < count; ++sct)
-        for (uint64_t off = 0; off < bytes[sct]; off += kChunk)
-            job.chunks.push_back({sct, off, (size_t)std::min<uint64_t>(kChunk, bytes[sct] - off)});
-    const unsigned threads = (unsigned)std::min<size_t>(kPipeThreads, std::max<size_t>(job.chunks.size(), 1));
+        for (uint64_t off = 0; off < bytes[sct]; off += job.chunk_bytes)
+            job.chunks.push_back({sct, off, (size_t)std::min<uint64_t>(job.chunk_bytes, bytes[sct] - off)});
+    const unsigned threads = (unsigned)std::min<size_t>(want_threads ? std::min(want_threads, 64u) : kPipeThreads,
+                                                        std::max<size_t>(job.chunks.size(), 1));
+    // Pinning costs about as much per byte as copying: one allocation, sized
+    // for the threads that will run, instead of two per thread.
+    cudaError_t e = cudaHostAlloc(reinterpret_cast<void **>(&job.arena), 2 * (size_t)threads * job.chunk_bytes,
+                                  cudaHostAllocDefault);
+    if (e != cudaSuccess) return cuda_fail(e, "pinned pipeline buffers");
     std::vector<std::thread> pool;
     try {
         for (unsigned t = 1; t < threads; ++t) pool.emplace_back(pipe_worker, &job);
@@ -319,6 +329,7 @@ as_error_t upload_pinned_pipeline(void *const *device, const void *const *host, 
     }
     pipe_worker(&job);
     for (std::thread &t : pool) t.join();
+    cudaFreeHost(job.arena);
     if (job.failed.load()) return cuda_fail(job.error, job.what);
     return AS_OK;
 }
@@ -337,7 +348,8 @@ extern "C" void as_gpu_release(as_gpu_resident_t *g)
 }
 
 extern "C" as_error_t as_gpu_upload(const void *const *sections, const uint64_t *bytes, int count, int zero_copy,
-                                    int method, const void *map_base, uint64_t map_size, as_gpu_resident_t **out)
+                                    int method, unsigned pipe_threads, unsigned pipe_chunk_mib, const void *map_base,
+                                    uint64_t map_size, as_gpu_resident_t **out)
 {
     as_error_t err = AS_OK;
     as_gpu_resident_t *g = new (std::nothrow) as_gpu_resident_t();
@@ -369,7 +381,7 @@ extern "C" as_error_t as_gpu_upload(const void *const *sections, const uint64_t 
         for (int i = 0; i < count; ++i)
             CUDA_TRY(cudaMalloc(&g->device[i], bytes[i] ? bytes[i] : 64), "cudaMalloc of a section");
         if (method == AS_UPLOAD_PINNED_PIPELINE) {
-            err = upload_pinned_pipeline(g->device, sections, bytes, count);
+            err = upload_pinned_pipeline(g->device, sections, bytes, count, pipe_threads, pipe_chunk_mib);
             if (err != AS_OK) goto done;
             g->info.method = "pinned pipeline";
         } else {

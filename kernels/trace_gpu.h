@@ -39,7 +39,8 @@ typedef struct as_gpu_resident {
  * host range [map_base, map_base + map_size) that holds them and hands the
  * kernels device pointers into it. */
 as_error_t as_gpu_upload(const void *const *sections, const uint64_t *bytes, int count, int zero_copy,
-                         int method, const void *map_base, uint64_t map_size, as_gpu_resident_t **out);
+                         int method, unsigned pipe_threads, unsigned pipe_chunk_mib, const void *map_base,
+                         uint64_t map_size, as_gpu_resident_t **out);
 void as_gpu_release(as_gpu_resident_t *g);
 /* Free device memory in bytes (0 when unknown). */
 uint64_t as_gpu_free_memory(void);

@@ -79,6 +79,9 @@ static void usage(void)
            "                             copy the sections into pinned buffers uploaded\n"
            "                             asynchronously), pageable (cudaMemcpy from the\n"
            "                             mapping), or registered (cudaHostRegister, then copy)\n"
+           "      --upload-threads N     GPU pipeline: copying threads (default 4)\n"
+           "      --upload-chunk MIB     GPU pipeline: MiB per pinned buffer, two per thread\n"
+           "                             (default 8)\n"
            "      --memory-limit BYTES   GPU: device memory the structure may take (default:\n"
            "                             the free memory)\n"
            "      --rebuild MESH         also rebuild the structure from MESH (the mesh it was\n"
@@ -272,7 +275,7 @@ int main(int argc, char **argv)
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
            OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
            OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD,
-           OPT_MATERIALS, OPT_VALIDATION_RECORD };
+           OPT_MATERIALS, OPT_VALIDATION_RECORD, OPT_UPLOAD_THREADS, OPT_UPLOAD_CHUNK };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -301,6 +304,8 @@ int main(int argc, char **argv)
         {"shuffle", no_argument, 0, OPT_SHUFFLE},
         {"intersector", required_argument, 0, OPT_INTERSECTOR},
         {"upload", required_argument, 0, OPT_UPLOAD},
+        {"upload-threads", required_argument, 0, OPT_UPLOAD_THREADS},
+        {"upload-chunk", required_argument, 0, OPT_UPLOAD_CHUNK},
         {"memory-limit", required_argument, 0, OPT_MEMLIMIT},
         {"threads", required_argument, 0, OPT_THREADS},
         {"format", required_argument, 0, 'f'},
@@ -398,6 +403,14 @@ int main(int argc, char **argv)
             else if (strcmp(optarg, "pageable") == 0) targs.upload = AS_UPLOAD_PAGEABLE;
             else if (strcmp(optarg, "registered") == 0) targs.upload = AS_UPLOAD_REGISTERED;
             else return tool_usage_error(TOOL, "unknown upload method '%s' (known: pipeline, pageable, registered)", optarg);
+            break;
+        case OPT_UPLOAD_THREADS:
+            if (!tool_parse_u32(optarg, &targs.upload_threads) || !targs.upload_threads || targs.upload_threads > 64)
+                return tool_usage_error(TOOL, "--upload-threads needs 1..64, got '%s'", optarg);
+            break;
+        case OPT_UPLOAD_CHUNK:
+            if (!tool_parse_u32(optarg, &targs.upload_chunk_mib) || !targs.upload_chunk_mib || targs.upload_chunk_mib > 256)
+                return tool_usage_error(TOOL, "--upload-chunk needs 1..256 (MiB), got '%s'", optarg);
             break;
         case OPT_MEMLIMIT: {
             char *end;

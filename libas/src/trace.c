@@ -67,7 +67,7 @@ static as_error_t upload(const as_structure_t *s, const as_trace_args_t *args)
     if (method == AS_UPLOAD_REGISTERED && !in_file) method = AS_UPLOAD_PAGEABLE;
     struct as_gpu_resident *g = NULL;
     const as_error_t err = as_gpu_upload(data, bytes, (int)ops->section_count, zero_copy, method,
-                                         in_file ? asf_bytes(s->file) : NULL, in_file ? asf_size(s->file) : 0, &g);
+                                         args->upload_threads, args->upload_chunk_mib, in_file ? asf_bytes(s->file) : NULL, in_file ? asf_size(s->file) : 0, &g);
     if (err != AS_OK) return err;
     as_structure_t *mut = (as_structure_t *)s;
     mut->gpu = g;

@@ -470,6 +470,10 @@ typedef struct as_trace_args {
                                     the counting pass fills with each ray's steps
                                     (nodes visited, leaves included), on either
                                     device; the caller owns the array */
+    uint32_t upload_threads;     /* GPU pinned pipeline: copying threads (0: the
+                                    measured default) */
+    uint32_t upload_chunk_mib;   /* GPU pinned pipeline: MiB per pinned buffer, two
+                                    per thread (0: the measured default) */
 } as_trace_args_t;
 void as_trace_args_default(as_trace_args_t *args);
 
