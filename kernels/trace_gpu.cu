@@ -237,11 +237,13 @@ namespace {
 // copy one into a buffer while the other buffer's upload runs, and upload
 // it asynchronously. Copies from the page cache and uploads over PCIe then
 // overlap on every thread, and no thread waits for another.
-// Defaults from docs/results/2026-11-22-load-validation-heat-h100.md: four
-// threads and 8 MiB buffers; other settings are measured through
-// as_trace_args_t.upload_threads and upload_chunk_mib.
-constexpr unsigned kPipeThreads = 4;
-constexpr unsigned kPipeChunkMiB = 8;
+// Measured on the H100 host with a 981 MB file in the page cache, four
+// rounds interleaved (docs/results/2026-11-22-load-csum-h100.md): eight
+// threads with 2 MiB buffers upload at 26-28 GB/s, four with 8 MiB (the
+// earlier default) at 14-18; more than eight threads, or larger buffers, are
+// slower.
+constexpr unsigned kPipeThreads = 8;
+constexpr unsigned kPipeChunkMiB = 2;
 
 struct pipe_chunk {
     int section;

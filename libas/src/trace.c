@@ -58,11 +58,10 @@ static as_error_t upload(const as_structure_t *s, const as_trace_args_t *args)
         validate_ms = as_now_ms() - t0;
     }
     int method = args->upload;
-    /* Measured on the H100 with San Miguel's SBVH (693 MB, page cache), in
-     * one run: the pinned pipeline 9.8 to 13.9 GB/s, cudaMemcpy from the
-     * mapping 7.3 to 8.3 GB/s; the same pipeline with 8 threads 5.1 to 7.0
-     * (pinning its buffers costs more than it gains); docs/results/
-     * 2026-11-22-load-validation-heat-h100.md. */
+    /* Measured on the H100 with a 981 MB San Miguel SBVH in the page cache:
+     * the pinned pipeline (eight threads, 2 MiB buffers) 26-28 GB/s,
+     * cudaMemcpy from the mapping 8.6 GB/s; docs/results/
+     * 2026-11-22-load-csum-h100.md. */
     if (method == AS_UPLOAD_AUTO) method = AS_UPLOAD_PINNED_PIPELINE;
     if (method == AS_UPLOAD_REGISTERED && !in_file) method = AS_UPLOAD_PAGEABLE;
     struct as_gpu_resident *g = NULL;

@@ -435,7 +435,7 @@ typedef enum as_residency {
 typedef enum as_upload_method {
     AS_UPLOAD_AUTO = 0,          /* the fastest measured: the pinned pipeline on the H100 */
     AS_UPLOAD_PAGEABLE = 1,      /* cudaMemcpy straight from the mapping */
-    AS_UPLOAD_PINNED_PIPELINE = 2, /* four threads copy the sections into pinned
+    AS_UPLOAD_PINNED_PIPELINE = 2, /* eight threads copy the sections into pinned
                                     buffers (two each), uploaded asynchronously
                                     on a stream per thread */
     AS_UPLOAD_REGISTERED = 3     /* cudaHostRegister the mapping, then copy */
