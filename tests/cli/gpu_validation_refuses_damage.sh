@@ -2,7 +2,8 @@
 # On the GPU, as-trace validates a structure of every layout after its
 # upload and before any kernel reads it, with the CPU's checks: each damage
 # that validate_catches_damage_without_checksums.sh (BVH2), test_kd.c (KD,
-# ropes) and test_misc_build.c (BIH, octree, grid) show the CPU refusing is
+# ropes), test_misc_build.c (BIH, octree, grid) and test_bvh_builders.c
+# (cwbvh) show the CPU refusing is
 # refused here too (exit 3, the file and the node, leaf, cell, PRIM entry or
 # triangle named), and intact files, SBVH leaves included, pass and are
 # traced. Skipped without a usable GPU.
@@ -257,4 +258,22 @@ refused_on_gpu "grid: more cells than offsets" 3 "GRDH axis 0: cell size and inv
 LAST=$(u32 "$GOOD" $((GRDC + 4 * (OFFSETS - 1))))
 patch "$GOOD" "$D" $((GRDC + 4 * (OFFSETS / 2))) "$(le32 $((LAST + 7)))"
 refused_on_gpu "grid: decreasing offsets" 3 "GRDC offset of cell $((OFFSETS / 2)) decreases \\[INVALID_STRUCTURE\\]"
+
+# Compressed wide BVH (CWBV, 80 bytes a node: p[3] at +0, e[3] at +12, imask
+# at +15, child_base at +16, tri_base at +20, meta[8] at +24, qlo at +32, qhi
+# at +56; node 0 is the root).
+layout_file cwbvh --builder sbvh --layout cwbvh
+META=$(section_offset "$J" META)
+CWBV=$(section_offset "$J" CWBV)
+CNODES=$(json_get "$J" '[s for s in j["sections"] if s["tag"] == "CWBV"][0]["elements"]')
+patch "$GOOD" "$D" "$CWBV" "$NAN"
+refused_on_gpu "cwbvh: NaN grid origin" 3 "CWBV node 0 has a non-finite origin \\[INVALID_STRUCTURE\\]"
+patch "$GOOD" "$D" $((CWBV + 12)) ff
+refused_on_gpu "cwbvh: exponent 255" 3 "CWBV node 0 has an exponent outside \\[1, 254\\] \\[INVALID_STRUCTURE\\]"
+patch "$GOOD" "$D" $((CWBV + 16)) "$(le32 "$CNODES")"
+refused_on_gpu "cwbvh: children past the last node" 3 "CWBV node 0 has a child outside .*\\[INVALID_STRUCTURE\\]"
+patch "$GOOD" "$D" $((CWBV + 16)) "$(le32 0)"
+refused_on_gpu "cwbvh: the root its own child (cycle)" 3 "CWBV node 0 has a child outside .*\\[INVALID_STRUCTURE\\]"
+patch "$GOOD" "$D" $((META + 104)) "$(le32 5)"
+refused_on_gpu "cwbvh: META node count" 3 "META says 5 nodes but CWBV holds $CNODES \\[INVALID_STRUCTURE\\]"
 finish
