@@ -358,6 +358,35 @@ static void validation_rejects_damaged_copies(void)
     as_mesh_release(m);
 }
 
+/* `n` rays of the mesh traced through x and y on the CPU, closest and any
+ * hit: how many answers differ. Closest hits are compared field for field
+ * with `whole_hit`, else by triangle and distance; any hits by hit or miss. */
+static size_t hits_differ(const as_mesh_t *m, const as_structure_t *x, const as_structure_t *y, size_t n,
+                          int whole_hit)
+{
+    as_ray_t *rays = malloc(sizeof *rays * n);
+    as_hit_t *hx = malloc(sizeof *hx * n), *hy = malloc(sizeof *hy * n);
+    ref_make_scene_rays(m, n, 99, rays);
+    as_trace_args_t ta;
+    as_trace_args_default(&ta);
+    ta.device = AS_DEVICE_CPU;
+    size_t differ = 0;
+    for (int any = 0; any < 2; ++any) {
+        ta.any_hit = any;
+        CHECK_EQ_INT(as_trace(x, rays, n, hx, &ta, NULL), AS_OK);
+        CHECK_EQ_INT(as_trace(y, rays, n, hy, &ta, NULL), AS_OK);
+        for (size_t i = 0; i < n; ++i) {
+            if (any) differ += (hx[i].prim == AS_NO_HIT) != (hy[i].prim == AS_NO_HIT);
+            else if (whole_hit) differ += memcmp(&hx[i], &hy[i], sizeof hx[i]) != 0;
+            else differ += hx[i].prim != hy[i].prim || hx[i].t != hy[i].t;
+        }
+    }
+    free(rays);
+    free(hx);
+    free(hy);
+    return differ;
+}
+
 static void layouts_convert_both_ways_to_the_same_bytes_and_hits(void)
 {
     as_mesh_t *m = as_mesh_import(AS_SOURCE_DIR "/scenes/bunny.drc");
@@ -387,23 +416,7 @@ static void layouts_convert_both_ways_to_the_same_bytes_and_hits(void)
             CHECK(test_files_equal(pa, pc));
         }
         /* Both layouts: the same hits, field for field. */
-        const size_t n = 20000;
-        as_ray_t *rays = malloc(sizeof *rays * n);
-        ref_make_scene_rays(m, n, 99, rays);
-        as_hit_t *ha = malloc(sizeof *ha * n), *hb = malloc(sizeof *hb * n);
-        as_trace_args_t ta;
-        as_trace_args_default(&ta);
-        ta.device = AS_DEVICE_CPU;
-        size_t differ = 0;
-        for (int any = 0; any < 2; ++any) {
-            ta.any_hit = any;
-            CHECK_EQ_INT(as_trace(la, rays, n, ha, &ta, NULL), AS_OK);
-            CHECK_EQ_INT(as_trace(lb, rays, n, hb, &ta, NULL), AS_OK);
-            for (size_t i = 0; i < n; ++i) {
-                if (any) differ += (ha[i].prim == AS_NO_HIT) != (hb[i].prim == AS_NO_HIT);
-                else differ += memcmp(&ha[i], &hb[i], sizeof ha[i]) != 0;
-            }
-        }
+        const size_t n = 20000, differ = hits_differ(m, la, lb, n, 1);
         fprintf(stderr, "  child-bounds vs own-bounds: %zu rays closest and any hit, %zu differ\n", n, differ);
         CHECK_EQ_U64(differ, 0);
         as_structure_stats_t sa, sb;
@@ -413,7 +426,6 @@ static void layouts_convert_both_ways_to_the_same_bytes_and_hits(void)
         CHECK_EQ_U64(sa.leaf_count, sb.leaf_count);
         CHECK_EQ_INT(sa.max_depth, sb.max_depth);
         CHECK(fabs(sa.sah_cost - sb.sah_cost) <= 1e-9 * sa.sah_cost);
-        free(rays); free(ha); free(hb);
         as_structure_release(c);
         as_structure_release(lb);
     }
@@ -467,26 +479,9 @@ static void the_wide_bvh_comes_from_either_binary_layout_with_the_same_hits(void
                 "%.2f children per node\n", (unsigned long long)sb.node_count, (unsigned long long)sb.leaf_count,
                 sb.sah_cost, (unsigned long long)sw.node_count, (unsigned long long)sw.leaf_count, sw.sah_cost,
                 (double)(sw.node_count - 1 + sw.leaf_count) / (double)sw.node_count);
-        const size_t n = 20000;
-        as_ray_t *rays = malloc(sizeof *rays * n);
-        ref_make_scene_rays(m, n, 99, rays);
-        as_hit_t *ha = malloc(sizeof *ha * n), *hb = malloc(sizeof *hb * n);
-        as_trace_args_t ta;
-        as_trace_args_default(&ta);
-        ta.device = AS_DEVICE_CPU;
-        size_t differ = 0;
-        for (int any = 0; any < 2; ++any) {
-            ta.any_hit = any;
-            CHECK_EQ_INT(as_trace(bin, rays, n, ha, &ta, NULL), AS_OK);
-            CHECK_EQ_INT(as_trace(a, rays, n, hb, &ta, NULL), AS_OK);
-            for (size_t i = 0; i < n; ++i) {
-                if (any) differ += (ha[i].prim == AS_NO_HIT) != (hb[i].prim == AS_NO_HIT);
-                else differ += ha[i].prim != hb[i].prim || ha[i].t != hb[i].t;
-            }
-        }
+        const size_t n = 20000, differ = hits_differ(m, bin, a, n, 0);
         fprintf(stderr, "  child-bounds vs cwbvh: %zu rays closest and any hit, %zu differ\n", n, differ);
         CHECK_EQ_U64(differ, 0);
-        free(rays); free(ha); free(hb);
     }
     as_structure_release(a);
     as_structure_release(b);
