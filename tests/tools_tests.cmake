@@ -17,6 +17,7 @@ set(_as_cli_tests
   trace_whitted_materials_from_mtl
   trace_validation_record_skips_known_files
   trace_camera_file_matches_options
+  trace_ray_limit_traces_first_rays
   bench_scene_writes_every_workload
   gpu_validation_refuses_damage
   other_scenes_build_inspect_trace

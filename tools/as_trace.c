@@ -46,6 +46,10 @@ static void usage(void)
            "      --ao-rays N            AO rays per primary hit (default 16)\n"
            "      --ao-radius F          AO ray length, fraction of the scene diagonal (0.1)\n"
            "      --diffuse-rays N       diffuse rays per primary hit (default 4)\n"
+           "      --ray-limit N          trace only the first N rays of each workload (of the\n"
+           "                             file with --rays), for ray-count sweeps; secondary\n"
+           "                             rays still start at every primary hit (not with\n"
+           "                             whitted)\n"
            "      --bounces N            whitted: reflection and refraction depth, 0..64\n"
            "                             (default 10)\n"
            "      --rays FILE            trace the rays of a ray file instead of a camera\n"
@@ -112,6 +116,7 @@ typedef struct run_result {
     char name[32];
     bool any_hit;
     size_t rays;
+    size_t workload_rays; /* the workload's rays, of which `rays` were traced */
     size_t hit;
     as_trace_timing_t timing;
     bool verified;
@@ -135,6 +140,7 @@ static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *
     snprintf(out->name, sizeof out->name, "%s", name);
     out->any_hit = any_hit;
     out->rays = count;
+    out->workload_rays = count;
     if (as_trace(s, rays, count, hits, &args, &out->timing) != AS_OK) return tool_fail(TOOL);
     out->hit = 0;
     for (size_t i = 0; i < count; ++i) out->hit += hits[i].prim != AS_NO_HIT;
@@ -184,8 +190,9 @@ static void print_text(const run_result *r, bool any_hit)
         printf("%-16s %10zu rays in all bounces: %.3f ms, %.2f Mrays/s\n", r->name, r->rays, t->trace_ms, mrays(r));
         return;
     }
-    printf("%-16s %10zu rays (%s), %zu hit: %.3f ms", r->name, r->rays, any_hit ? "any hit" : "closest hit", r->hit,
-           t->trace_ms);
+    printf("%-16s %10zu rays", r->name, r->rays);
+    if (r->workload_rays != r->rays) printf(" of %zu", r->workload_rays);
+    printf(" (%s), %zu hit: %.3f ms", any_hit ? "any hit" : "closest hit", r->hit, t->trace_ms);
     if (t->device == AS_DEVICE_GPU && t->timed_runs)
         printf(" (median of %u, %.3f..%.3f)", t->timed_runs, t->trace_ms_min, t->trace_ms_max);
     printf(", %.2f Mrays/s\n", mrays(r));
@@ -207,6 +214,7 @@ static void print_json(const run_result *r, bool any_hit, bool last)
            "\"runs\": %u, \"trace_ms_min\": %.6f, \"trace_ms_max\": %.6f, \"mrays_per_s\": %.3f",
            r->name, r->rays, any_hit ? "any" : "closest", r->hit, t->trace_ms, t->timed_runs, t->trace_ms_min,
            t->trace_ms_max, mrays(r));
+    if (r->workload_rays != r->rays) printf(", \"workload_rays\": %zu", r->workload_rays);
     if (t->have_stats)
         printf(", \"steps_avg\": %.4f, \"steps_max\": %u, \"tests_avg\": %.4f, \"tests_max\": %u", t->steps_avg,
                t->steps_max, t->tests_avg, t->tests_max);
@@ -275,7 +283,7 @@ int main(int argc, char **argv)
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
            OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
            OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD,
-           OPT_MATERIALS, OPT_VALIDATION_RECORD, OPT_UPLOAD_THREADS, OPT_UPLOAD_CHUNK };
+           OPT_MATERIALS, OPT_VALIDATION_RECORD, OPT_UPLOAD_THREADS, OPT_UPLOAD_CHUNK, OPT_RAY_LIMIT };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -290,6 +298,7 @@ int main(int argc, char **argv)
         {"ao-rays", required_argument, 0, OPT_AO_RAYS},
         {"ao-radius", required_argument, 0, OPT_AO_RADIUS},
         {"diffuse-rays", required_argument, 0, OPT_DIFFUSE_RAYS},
+        {"ray-limit", required_argument, 0, OPT_RAY_LIMIT},
         {"rays", required_argument, 0, OPT_RAYS},
         {"hits-out", required_argument, 0, OPT_HITS},
         {"image", required_argument, 0, 'i'},
@@ -328,7 +337,7 @@ int main(int argc, char **argv)
     unsigned light_count = 0, ao_rays = 16, diffuse_rays = 4, bounces = 10;
     const char *camera_path = NULL;
     int have_eye = 0, have_target = 0, have_fov = 0, have_up = 0, json = 0, workloads = W_PRIMARY, any_hit = 0, shuffle = 0, c;
-    unsigned width = 1920, height = 1080, u, heat_max = 0;
+    unsigned width = 1920, height = 1080, u, heat_max = 0, ray_limit = 0; /* 0: every ray */
     const char *rays_path = NULL, *hits_path = NULL, *image_path = NULL, *heat_path = NULL,
                *rebuild_path = NULL, *materials_path = NULL, *record_path = NULL;
     opterr = 0;
@@ -367,6 +376,7 @@ int main(int argc, char **argv)
         case OPT_AO_RAYS: if (!tool_parse_u32(optarg, &ao_rays) || !ao_rays || ao_rays > 1024) return tool_usage_error(TOOL, "--ao-rays needs 1..1024, got '%s'", optarg); break;
         case OPT_AO_RADIUS: if (!tool_parse_float(optarg, &ao_radius) || ao_radius <= 0) return tool_usage_error(TOOL, "--ao-radius needs a number > 0, got '%s'", optarg); break;
         case OPT_DIFFUSE_RAYS: if (!tool_parse_u32(optarg, &diffuse_rays) || !diffuse_rays || diffuse_rays > 1024) return tool_usage_error(TOOL, "--diffuse-rays needs 1..1024, got '%s'", optarg); break;
+        case OPT_RAY_LIMIT: if (!tool_parse_u32(optarg, &ray_limit) || !ray_limit) return tool_usage_error(TOOL, "--ray-limit needs a positive ray count, got '%s'", optarg); break;
         case OPT_RAYS: rays_path = optarg; break;
         case OPT_HITS: hits_path = optarg; break;
         case 'i': image_path = optarg; break;
@@ -439,6 +449,8 @@ int main(int argc, char **argv)
     if (optind != argc - 1) return tool_usage_error(TOOL, "expected one .asf file, got %d", argc - optind);
     if (rays_path && (image_path || heat_path || workloads != W_PRIMARY))
         return tool_usage_error(TOOL, "--rays traces the file's rays: it cannot be used with --image, --heat-map or --workload");
+    if (ray_limit && (workloads & W_WHITTED))
+        return tool_usage_error(TOOL, "--ray-limit does not apply to whitted, whose bounces each trace the rays of the one before: use -w primary, shadow, ao or diffuse");
     if (materials_path && !(workloads & W_WHITTED))
         return tool_usage_error(TOOL, "--materials gives the whitted workload's materials: use it with -w whitted or all");
     if (have_eye != have_target) return tool_usage_error(TOOL, "--eye and --target go together");
@@ -520,8 +532,24 @@ int main(int argc, char **argv)
         primary_args.collect_stats = true;
         primary_args.ray_steps = ray_steps;
     }
-    if ((code = trace_one(rays_path ? "file" : "primary", s, rays, count, hits, &primary_args, rays_path && any_hit, &res[nres++])))
+    /* With --ray-limit, the first rays of the file are all there is; the
+     * camera's rays are traced in full once (one launch, not reported) for
+     * the hits the secondary rays, the image and the hit file start from,
+     * then the first ray_limit of them are timed. */
+    const size_t workload_count = count;
+    if (rays_path && ray_limit && ray_limit < count) count = ray_limit;
+    const size_t primary_traced = ray_limit && ray_limit < count ? ray_limit : count;
+    if (primary_traced < count) {
+        as_trace_args_t full = primary_args;
+        full.timed_runs = 1;
+        as_trace_timing_t full_timing;
+        if (as_trace(s, rays, count, hits, &full, &full_timing) != AS_OK) { code = tool_fail(TOOL); goto done; }
+        primary_args = targs;
+    }
+    if ((code = trace_one(rays_path ? "file" : "primary", s, rays, primary_traced, hits, &primary_args,
+                          rays_path && any_hit, &res[nres++])))
         goto done;
+    res[nres - 1].workload_rays = workload_count;
     if (heat_path) {
         /* The same image code for both devices: only the counts differ in
          * where they were taken. */
@@ -557,13 +585,15 @@ int main(int argc, char **argv)
         if (!sec_hits) { fprintf(stderr, "%s: error: out of memory for %zu hits\n", TOOL, n); code = EXIT_RUNTIME; goto done; }
         const char *name = w == W_SHADOW ? (shuffle ? "shadow random" : "shadow")
                          : w == W_AO ? (shuffle ? "ao random" : "ao") : (shuffle ? "diffuse random" : "diffuse");
-        if ((code = trace_one(name, s, sec, n, sec_hits, &targs, w != W_DIFFUSE, &res[nres++]))) goto done;
+        const size_t traced = ray_limit && ray_limit < n ? ray_limit : n;
+        if ((code = trace_one(name, s, sec, traced, sec_hits, &targs, w != W_DIFFUSE, &res[nres++]))) goto done;
+        res[nres - 1].workload_rays = n;
         if (w == W_AO && image_path) {
             /* Per pixel: the fraction of AO rays that escape. */
             ao = calloc((size_t)width * height, sizeof *ao);
             float *total = calloc((size_t)width * height, sizeof *total);
             if (!ao || !total) { free(total); fprintf(stderr, "%s: error: out of memory\n", TOOL); code = EXIT_RUNTIME; goto done; }
-            for (size_t i = 0; i < n; ++i) {
+            for (size_t i = 0; i < traced; ++i) {
                 const uint32_t p = pixel_of_ray[sec_from[i]];
                 total[p] += 1.0f;
                 ao[p] += sec_hits[i].prim == AS_NO_HIT ? 1.0f : 0.0f;
