@@ -19,6 +19,7 @@ set(_as_cli_tests
   trace_camera_file_matches_options
   trace_ray_limit_traces_first_rays
   bench_scene_writes_every_workload
+  bench_sweep_writes_protocol_and_sweeps
   gpu_validation_refuses_damage
   other_scenes_build_inspect_trace
   stiff_cases_meet_their_outcomes)
@@ -29,6 +30,7 @@ foreach(_t ${_as_cli_tests})
   set_tests_properties(cli_${_t} PROPERTIES SKIP_RETURN_CODE 77 LABELS cli)
 endforeach()
 set_tests_properties(cli_other_scenes_build_inspect_trace PROPERTIES LABELS "cli;scenes")
+set_tests_properties(cli_bench_sweep_writes_protocol_and_sweeps PROPERTIES LABELS "cli;scenes")
 set_tests_properties(cli_gpu_validation_refuses_damage PROPERTIES LABELS "cli;gpu")
 
 # tools/as-study (label tools): two partial studies of the bundled bunny on the
