@@ -48,10 +48,9 @@ AS_HD int as_bvh2_leaf(const as_ray_pre_t *r, const as_tri4_t *AS_RESTRICT tris,
     for (uint32_t i = 0; i < count; ++i) {
         const as_tri4_t *tri = tris + first + i;
         const as_f4_t v0 = as_load_f4(&tri->v0), v1 = as_load_f4(&tri->v1), v2 = as_load_f4(&tri->v2);
-        const float a[3] = {v0.x, v0.y, v0.z}, b[3] = {v1.x, v1.y, v1.z}, c[3] = {v2.x, v2.y, v2.z};
         float t, u, v;
         if (ctr) ctr->tri_tests++;
-        if (as_ray_triangle(r, a, b, c, AS_MINF(hit->t, r->tmax), &t, &u, &v)) {
+        if (as_ray_triangle(r, &tri->v0, v0, v1, v2, AS_MINF(hit->t, r->tmax), &t, &u, &v)) {
             const uint32_t prim = as_float_as_uint(v0.w);
             /* Equal distances (a shared edge, coincident copies) go to the
              * lowest source index, so every traversal order reports the same

@@ -47,10 +47,9 @@ AS_HD int as_kd_leaf(const as_ray_pre_t *r, const uint32_t *AS_RESTRICT prim, co
     for (uint32_t i = 1; i <= n; ++i) {
         const as_tri4_t *tri = tris + prim[offset + i];
         const as_f4_t v0 = as_load_f4(&tri->v0), v1 = as_load_f4(&tri->v1), v2 = as_load_f4(&tri->v2);
-        const float a[3] = {v0.x, v0.y, v0.z}, b[3] = {v1.x, v1.y, v1.z}, c[3] = {v2.x, v2.y, v2.z};
         float t, u, v;
         if (ctr) ctr->tri_tests++;
-        if (as_ray_triangle(r, a, b, c, AS_MINF(hit->t, r->tmax), &t, &u, &v)) {
+        if (as_ray_triangle(r, &tri->v0, v0, v1, v2, AS_MINF(hit->t, r->tmax), &t, &u, &v)) {
             const uint32_t id = as_float_as_uint(v0.w);
             if (t < hit->t || id < hit->prim) {
                 hit->t = t;

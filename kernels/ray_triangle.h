@@ -97,24 +97,51 @@ AS_HD int as_ray_box(const as_ray_pre_t *r, float lox, float hix, float loy, flo
     return tn <= tf;
 }
 
+/* Coordinate k (0, 1 or 2) of (x, y, z), by selection: an array indexed by a
+ * value known only at run time lives in local memory on the GPU, and every
+ * triangle test would store and reload its vertices there. */
+AS_HD float as_pick3f(int k, float x, float y, float z) { return k == 0 ? x : (k == 1 ? y : z); }
+AS_HD double as_pick3d(int k, double x, double y, double z) { return k == 0 ? x : (k == 1 ? y : z); }
+
+/* What the exact end of the float test reads of a ray. It is passed by
+ * value to a function the GPU does not inline; passing the whole prepared
+ * ray by address would keep that ray in local memory for the whole trace. */
+typedef struct as_ray_exact {
+    double dsx, dsy, dsz;
+    float ox, oy, oz, tmin;
+    int kx, ky, kz;
+} as_ray_exact_t;
+
+AS_HD as_ray_exact_t as_ray_exact_of(const as_ray_pre_t *r)
+{
+    as_ray_exact_t e;
+    e.dsx = r->dsx; e.dsy = r->dsy; e.dsz = r->dsz;
+    e.ox = r->ox; e.oy = r->oy; e.oz = r->oz; e.tmin = r->tmin;
+    e.kx = r->kx; e.ky = r->ky; e.kz = r->kz;
+    return e;
+}
+
 /* The sheared edge functions of a triangle in double, and the numerator T
  * and denominator det of its distance t = T / det, without any decision:
  * the float test below decides hit or miss (watertight), and these give the
  * distance and barycentrics of an accepted hit, exact where float cancels
  * (slivers, huge triangles seen from close by). */
-AS_HD void as_triangle_sums_double(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+AS_HD void as_triangle_sums_double(const as_ray_exact_t *r, as_f4_t a, as_f4_t b, as_f4_t c,
                                    double *T, double *det, double *V, double *W)
 {
     const double dsx = r->dsx, dsy = r->dsy, dsz = r->dsz;
-    const double o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
-    const double A_z = AS_DSUB((double)a[kz], o[kz]), B_z = AS_DSUB((double)b[kz], o[kz]), C_z = AS_DSUB((double)c[kz], o[kz]);
-    const double Ax = AS_DSUB(AS_DSUB((double)a[kx], o[kx]), AS_DMUL(dsx, A_z));
-    const double Ay = AS_DSUB(AS_DSUB((double)a[ky], o[ky]), AS_DMUL(dsy, A_z));
-    const double Bx = AS_DSUB(AS_DSUB((double)b[kx], o[kx]), AS_DMUL(dsx, B_z));
-    const double By = AS_DSUB(AS_DSUB((double)b[ky], o[ky]), AS_DMUL(dsy, B_z));
-    const double Cx = AS_DSUB(AS_DSUB((double)c[kx], o[kx]), AS_DMUL(dsx, C_z));
-    const double Cy = AS_DSUB(AS_DSUB((double)c[ky], o[ky]), AS_DMUL(dsy, C_z));
+    const double okx = as_pick3d(kx, r->ox, r->oy, r->oz), oky = as_pick3d(ky, r->ox, r->oy, r->oz),
+                 okz = as_pick3d(kz, r->ox, r->oy, r->oz);
+    const double A_z = AS_DSUB(as_pick3d(kz, a.x, a.y, a.z), okz);
+    const double B_z = AS_DSUB(as_pick3d(kz, b.x, b.y, b.z), okz);
+    const double C_z = AS_DSUB(as_pick3d(kz, c.x, c.y, c.z), okz);
+    const double Ax = AS_DSUB(AS_DSUB(as_pick3d(kx, a.x, a.y, a.z), okx), AS_DMUL(dsx, A_z));
+    const double Ay = AS_DSUB(AS_DSUB(as_pick3d(ky, a.x, a.y, a.z), oky), AS_DMUL(dsy, A_z));
+    const double Bx = AS_DSUB(AS_DSUB(as_pick3d(kx, b.x, b.y, b.z), okx), AS_DMUL(dsx, B_z));
+    const double By = AS_DSUB(AS_DSUB(as_pick3d(ky, b.x, b.y, b.z), oky), AS_DMUL(dsy, B_z));
+    const double Cx = AS_DSUB(AS_DSUB(as_pick3d(kx, c.x, c.y, c.z), okx), AS_DMUL(dsx, C_z));
+    const double Cy = AS_DSUB(AS_DSUB(as_pick3d(ky, c.x, c.y, c.z), oky), AS_DMUL(dsy, C_z));
     const double U = AS_DSUB(AS_DMUL(Cx, By), AS_DMUL(Cy, Bx));
     *V = AS_DSUB(AS_DMUL(Ax, Cy), AS_DMUL(Ay, Cx));
     *W = AS_DSUB(AS_DMUL(Bx, Ay), AS_DMUL(By, Ax));
@@ -139,16 +166,18 @@ AS_HD int as_distance_may_be_in(double T, double det, float tmin, float tmax)
 
 /* The exact end of the float test for a triangle the ray crosses: distance
  * and barycentrics in double, one division. Not inlined on the GPU, so that
- * its double registers do not count against the traversal loop. */
-AS_NOINLINE_HD int as_triangle_accept_double(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+ * its double registers do not count against the traversal loop; it reloads
+ * the triangle (three vertices, 16 bytes each, at `tri`) from the cache
+ * rather than receive it. */
+AS_NOINLINE_HD int as_triangle_accept_double(as_ray_exact_t r, const as_f4_t *AS_RESTRICT tri,
                                              float tmax_now, float *t_out, float *u_out, float *v_out)
 {
     double T, detd, Vd, Wd;
-    as_triangle_sums_double(r, a, b, c, &T, &detd, &Vd, &Wd);
-    if (detd == 0.0 || !as_distance_may_be_in(T, detd, r->tmin, tmax_now)) return 0;
+    as_triangle_sums_double(&r, as_load_f4(tri), as_load_f4(tri + 1), as_load_f4(tri + 2), &T, &detd, &Vd, &Wd);
+    if (detd == 0.0 || !as_distance_may_be_in(T, detd, r.tmin, tmax_now)) return 0;
     const double inv = 1.0 / detd;
     const double td = T * inv, ud = Vd * inv, vd = Wd * inv;
-    if (!(td >= (double)r->tmin && td <= (double)tmax_now)) return 0;
+    if (!(td >= (double)r.tmin && td <= (double)tmax_now)) return 0;
     *t_out = (float)td; /* rounding is monotonic: still within the float interval */
     *u_out = (float)ud;
     *v_out = (float)vd;
@@ -159,14 +188,18 @@ AS_NOINLINE_HD int as_triangle_accept_double(const as_ray_pre_t *r, const float 
  * edge functions of a shared edge are still exact negatives, so it stays
  * watertight while the cancellation that float suffers for triangles much
  * larger or smaller than their distance disappears. */
-AS_HD int as_ray_triangle_precise(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+AS_HD int as_ray_triangle_precise(const as_ray_pre_t *r, as_f4_t a, as_f4_t b, as_f4_t c,
                                   float tmax_now, float *t_out, float *u_out, float *v_out)
 {
-    const double o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
-    const double A_x = AS_DSUB((double)a[kx], o[kx]), A_y = AS_DSUB((double)a[ky], o[ky]), A_z = AS_DSUB((double)a[kz], o[kz]);
-    const double B_x = AS_DSUB((double)b[kx], o[kx]), B_y = AS_DSUB((double)b[ky], o[ky]), B_z = AS_DSUB((double)b[kz], o[kz]);
-    const double C_x = AS_DSUB((double)c[kx], o[kx]), C_y = AS_DSUB((double)c[ky], o[ky]), C_z = AS_DSUB((double)c[kz], o[kz]);
+    const double okx = as_pick3d(kx, r->ox, r->oy, r->oz), oky = as_pick3d(ky, r->ox, r->oy, r->oz),
+                 okz = as_pick3d(kz, r->ox, r->oy, r->oz);
+    const double A_x = AS_DSUB(as_pick3d(kx, a.x, a.y, a.z), okx), A_y = AS_DSUB(as_pick3d(ky, a.x, a.y, a.z), oky),
+                 A_z = AS_DSUB(as_pick3d(kz, a.x, a.y, a.z), okz);
+    const double B_x = AS_DSUB(as_pick3d(kx, b.x, b.y, b.z), okx), B_y = AS_DSUB(as_pick3d(ky, b.x, b.y, b.z), oky),
+                 B_z = AS_DSUB(as_pick3d(kz, b.x, b.y, b.z), okz);
+    const double C_x = AS_DSUB(as_pick3d(kx, c.x, c.y, c.z), okx), C_y = AS_DSUB(as_pick3d(ky, c.x, c.y, c.z), oky),
+                 C_z = AS_DSUB(as_pick3d(kz, c.x, c.y, c.z), okz);
     const double Ax = AS_DSUB(A_x, AS_DMUL(r->dsx, A_z)), Ay = AS_DSUB(A_y, AS_DMUL(r->dsy, A_z));
     const double Bx = AS_DSUB(B_x, AS_DMUL(r->dsx, B_z)), By = AS_DSUB(B_y, AS_DMUL(r->dsy, B_z));
     const double Cx = AS_DSUB(C_x, AS_DMUL(r->dsx, C_z)), Cy = AS_DSUB(C_y, AS_DMUL(r->dsy, C_z));
@@ -191,18 +224,18 @@ AS_HD int as_ray_triangle_precise(const as_ray_pre_t *r, const float *a, const f
  * its own (no fused multiply-add) so that CPU and GPU agree bit for bit. It
  * decides on each triangle alone, so a ray through a shared edge or vertex
  * can miss both triangles, and a parallel ray (det exactly 0) misses. */
-AS_HD int as_ray_triangle_moller(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
+AS_HD int as_ray_triangle_moller(const as_ray_pre_t *r, as_f4_t a, as_f4_t b, as_f4_t c,
                                  float tmax_now, float *t_out, float *u_out, float *v_out)
 {
-    const float e1x = AS_SUB(b[0], a[0]), e1y = AS_SUB(b[1], a[1]), e1z = AS_SUB(b[2], a[2]);
-    const float e2x = AS_SUB(c[0], a[0]), e2y = AS_SUB(c[1], a[1]), e2z = AS_SUB(c[2], a[2]);
+    const float e1x = AS_SUB(b.x, a.x), e1y = AS_SUB(b.y, a.y), e1z = AS_SUB(b.z, a.z);
+    const float e2x = AS_SUB(c.x, a.x), e2y = AS_SUB(c.y, a.y), e2z = AS_SUB(c.z, a.z);
     const float px = AS_SUB(AS_MUL(r->dy, e2z), AS_MUL(r->dz, e2y));
     const float py = AS_SUB(AS_MUL(r->dz, e2x), AS_MUL(r->dx, e2z));
     const float pz = AS_SUB(AS_MUL(r->dx, e2y), AS_MUL(r->dy, e2x));
     const float det = AS_ADD(AS_ADD(AS_MUL(e1x, px), AS_MUL(e1y, py)), AS_MUL(e1z, pz));
     if (det == 0.0f) return 0;
     const float inv = 1.0f / det;
-    const float sx = AS_SUB(r->ox, a[0]), sy = AS_SUB(r->oy, a[1]), sz = AS_SUB(r->oz, a[2]);
+    const float sx = AS_SUB(r->ox, a.x), sy = AS_SUB(r->oy, a.y), sz = AS_SUB(r->oz, a.z);
     const float u = AS_MUL(AS_ADD(AS_ADD(AS_MUL(sx, px), AS_MUL(sy, py)), AS_MUL(sz, pz)), inv);
     if (!(u >= 0.0f && u <= 1.0f)) return 0;
     const float qx = AS_SUB(AS_MUL(sy, e1z), AS_MUL(sz, e1y));
@@ -219,19 +252,25 @@ AS_HD int as_ray_triangle_moller(const as_ray_pre_t *r, const float *a, const fl
 }
 
 /* Watertight ray/triangle intersection (Woop, Benthin & Wald 2013), no
- * culling. Returns 1 and sets *t, *u, *v when the ray hits the triangle with
- * tmin <= t <= tmax_now, where the hit point is (1-u-v) a + u b + v c.
- * Triangles with zero projected area are never hit. */
-AS_HD int as_ray_triangle(const as_ray_pre_t *r, const float *a, const float *b, const float *c,
-                          float tmax_now, float *t_out, float *u_out, float *v_out)
+ * culling, against the triangle whose three vertices (16 bytes each, xyz
+ * used) are stored at `tri` and were loaded into a, b, c. Returns 1 and sets
+ * *t, *u, *v when the ray hits the triangle with tmin <= t <= tmax_now,
+ * where the hit point is (1-u-v) a + u b + v c. Triangles with zero
+ * projected area are never hit. */
+AS_HD int as_ray_triangle(const as_ray_pre_t *r, const as_f4_t *AS_RESTRICT tri, as_f4_t a, as_f4_t b,
+                          as_f4_t c, float tmax_now, float *t_out, float *u_out, float *v_out)
 {
     if (r->precise) return as_ray_triangle_precise(r, a, b, c, tmax_now, t_out, u_out, v_out);
     if (r->moller) return as_ray_triangle_moller(r, a, b, c, tmax_now, t_out, u_out, v_out);
-    const float o[3] = {r->ox, r->oy, r->oz};
     const int kx = r->kx, ky = r->ky, kz = r->kz;
-    const float A_x = AS_SUB(a[kx], o[kx]), A_y = AS_SUB(a[ky], o[ky]), A_z = AS_SUB(a[kz], o[kz]);
-    const float B_x = AS_SUB(b[kx], o[kx]), B_y = AS_SUB(b[ky], o[ky]), B_z = AS_SUB(b[kz], o[kz]);
-    const float C_x = AS_SUB(c[kx], o[kx]), C_y = AS_SUB(c[ky], o[ky]), C_z = AS_SUB(c[kz], o[kz]);
+    const float okx = as_pick3f(kx, r->ox, r->oy, r->oz), oky = as_pick3f(ky, r->ox, r->oy, r->oz),
+                okz = as_pick3f(kz, r->ox, r->oy, r->oz);
+    const float A_x = AS_SUB(as_pick3f(kx, a.x, a.y, a.z), okx), A_y = AS_SUB(as_pick3f(ky, a.x, a.y, a.z), oky),
+                A_z = AS_SUB(as_pick3f(kz, a.x, a.y, a.z), okz);
+    const float B_x = AS_SUB(as_pick3f(kx, b.x, b.y, b.z), okx), B_y = AS_SUB(as_pick3f(ky, b.x, b.y, b.z), oky),
+                B_z = AS_SUB(as_pick3f(kz, b.x, b.y, b.z), okz);
+    const float C_x = AS_SUB(as_pick3f(kx, c.x, c.y, c.z), okx), C_y = AS_SUB(as_pick3f(ky, c.x, c.y, c.z), oky),
+                C_z = AS_SUB(as_pick3f(kz, c.x, c.y, c.z), okz);
     const float Ax = AS_SUB(A_x, AS_MUL(r->sx, A_z)), Ay = AS_SUB(A_y, AS_MUL(r->sy, A_z));
     const float Bx = AS_SUB(B_x, AS_MUL(r->sx, B_z)), By = AS_SUB(B_y, AS_MUL(r->sy, B_z));
     const float Cx = AS_SUB(C_x, AS_MUL(r->sx, C_z)), Cy = AS_SUB(C_y, AS_MUL(r->sy, C_z));
@@ -253,6 +292,6 @@ AS_HD int as_ray_triangle(const as_ray_pre_t *r, const float *a, const float *b,
      * larger than their distance. (A float distance with an error bound
      * that lets float decide most candidates measured slower on the H100:
      * the bound's registers made the traversal loop spill.) */
-    return as_triangle_accept_double(r, a, b, c, tmax_now, t_out, u_out, v_out);
+    return as_triangle_accept_double(as_ray_exact_of(r), tri, tmax_now, t_out, u_out, v_out);
 }
 #endif

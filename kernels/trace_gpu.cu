@@ -127,6 +127,12 @@ struct octree_traversal {
     }
 };
 
+// Blocks of 128 threads each multiprocessor must hold at once: it caps the
+// registers per thread at 65536 / (128 x this).
+#ifndef AS_TRACE_MIN_BLOCKS
+#define AS_TRACE_MIN_BLOCKS 8
+#endif
+
 // One ray; STATS adds the per-ray counters (a separate instantiation, so the
 // timed kernel carries no counting code at all), and FLAGS, the ray flags, is
 // a constant too, so that the float intersector's kernel carries no code or
@@ -156,7 +162,7 @@ __device__ __forceinline__ void trace_one(const T &trav, const device_ray *__res
 }
 
 template <class T, bool STATS, int FLAGS>
-__global__ void __launch_bounds__(128, 8) kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+__global__ void __launch_bounds__(128, AS_TRACE_MIN_BLOCKS) kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
                                       size_t count, int any_hit, device_counters *counters)
 {
     const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
@@ -167,7 +173,7 @@ __global__ void __launch_bounds__(128, 8) kernel_thread_per_ray(const T trav, co
 // each warp takes `batch` rays per atomic from a global counter, so warps
 // that finish early take more work instead of idling at the tail.
 template <class T, bool STATS, int FLAGS>
-__global__ void __launch_bounds__(128, 8) kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+__global__ void __launch_bounds__(128, AS_TRACE_MIN_BLOCKS) kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
                                   size_t count, int any_hit, unsigned long long *next, unsigned batch,
                                   device_counters *counters)
 {
