@@ -127,10 +127,21 @@ struct octree_traversal {
     }
 };
 
-// Blocks of 128 threads each multiprocessor must hold at once: it caps the
-// registers per thread at 65536 / (128 x this).
-#ifndef AS_TRACE_MIN_BLOCKS
-#define AS_TRACE_MIN_BLOCKS 8
+// Blocks of 128 threads each multiprocessor must hold at once, per
+// traversal: it caps the registers per thread at 65536 / (128 x this), 64
+// for 8, 72 for 7, 80 for 6. Fewer registers mean more warps to hide memory
+// latency but spills; each value is the fastest of 5 to 8 measured on the
+// H100 (docs/results/tuning.md, step 2). AS_TRACE_MIN_BLOCKS, when defined,
+// sets them all, to measure.
+template <class T> struct trace_min_blocks { static constexpr int value = 8; };
+template <> struct trace_min_blocks<bvh2_traversal> { static constexpr int value = 6; };
+template <> struct trace_min_blocks<cwbvh_traversal> { static constexpr int value = 6; };
+template <> struct trace_min_blocks<bih_traversal> { static constexpr int value = 7; };
+template <> struct trace_min_blocks<grid_traversal> { static constexpr int value = 7; };
+#ifdef AS_TRACE_MIN_BLOCKS
+#define AS_MIN_BLOCKS(T) AS_TRACE_MIN_BLOCKS
+#else
+#define AS_MIN_BLOCKS(T) trace_min_blocks<T>::value
 #endif
 
 // One ray; STATS adds the per-ray counters (a separate instantiation, so the
@@ -162,7 +173,7 @@ __device__ __forceinline__ void trace_one(const T &trav, const device_ray *__res
 }
 
 template <class T, bool STATS, int FLAGS>
-__global__ void __launch_bounds__(128, AS_TRACE_MIN_BLOCKS) kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+__global__ void __launch_bounds__(128, AS_MIN_BLOCKS(T)) kernel_thread_per_ray(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
                                       size_t count, int any_hit, device_counters *counters)
 {
     const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;
@@ -173,7 +184,7 @@ __global__ void __launch_bounds__(128, AS_TRACE_MIN_BLOCKS) kernel_thread_per_ra
 // each warp takes `batch` rays per atomic from a global counter, so warps
 // that finish early take more work instead of idling at the tail.
 template <class T, bool STATS, int FLAGS>
-__global__ void __launch_bounds__(128, AS_TRACE_MIN_BLOCKS) kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
+__global__ void __launch_bounds__(128, AS_MIN_BLOCKS(T)) kernel_persistent(const T trav, const device_ray *__restrict__ rays, float4 *__restrict__ hits,
                                   size_t count, int any_hit, unsigned long long *next, unsigned batch,
                                   device_counters *counters)
 {
