@@ -20,7 +20,8 @@
 
 static as_build_args_t variant;
 static char variant_name[128];
-static as_intersector_t intersector = AS_INTERSECTOR_WATERTIGHT;
+static as_intersector_t intersector;         /* what trace() uses */
+static as_intersector_t default_intersector; /* the library's default, set in main */
 static as_device_t device = AS_DEVICE_CPU;
 
 /* ---- helpers -------------------------------------------------------------- */
@@ -163,6 +164,19 @@ static void watertight_meshes_have_zero_leaks_far_from_the_origin(void)
             CHECK_EQ_U64(closed_mesh_leaks(kind ? AS_STIFF_WATERTIGHT_SPHERE : AS_STIFF_WATERTIGHT_CUBE, offsets[o]), 0);
 }
 
+/* The float version of the watertight test (explicitly rounded, with the
+ * double fallback where an edge function cancels to zero) is not the
+ * default but is watertight too: the same meshes, zero leaks. */
+static void float_watertight_test_has_zero_leaks_too(void)
+{
+    const double offsets[] = {0.0, 1e6, 1e7};
+    intersector = AS_INTERSECTOR_WATERTIGHT;
+    for (int o = 0; o < 3; ++o)
+        for (int kind = 0; kind < 2; ++kind)
+            CHECK_EQ_U64(closed_mesh_leaks(kind ? AS_STIFF_WATERTIGHT_SPHERE : AS_STIFF_WATERTIGHT_CUBE, offsets[o]), 0);
+    intersector = default_intersector;
+}
+
 /* The classic Moller-Trumbore test decides each triangle alone, so rays
  * aimed at shared vertices and edges slip through: the same meshes leak.
  * This is why the watertight test is the default, and it shows that the
@@ -175,7 +189,7 @@ static void moller_trumbore_leaks_where_the_watertight_test_does_not(void)
     for (int o = 0; o < 3; ++o)
         for (int kind = 0; kind < 2; ++kind)
             leaks += closed_mesh_leaks(kind ? AS_STIFF_WATERTIGHT_SPHERE : AS_STIFF_WATERTIGHT_CUBE, offsets[o]);
-    intersector = AS_INTERSECTOR_WATERTIGHT;
+    intersector = default_intersector;
     fprintf(stderr, "  %s Moller-Trumbore: %zu leaks in all\n", variant_name, leaks);
     CHECK(leaks > 0);
 }
@@ -265,12 +279,13 @@ static void dynamic_range_matches_the_reference(void)
     as_structure_t *s = build(c.mesh, "dynamic range");
     if (!s) { as_stiff_case_free(&c); return; }
     const size_t n = c.ray_count;
+    intersector = AS_INTERSECTOR_WATERTIGHT;
     const size_t float_bad = against_reference("dynamic range, float test", c.mesh, s, c.rays, n);
     fprintf(stderr, "  %s dynamic range: the float test disagrees on %zu of %zu rays (%.0f ppm)\n", variant_name,
             float_bad, n, 1e6 * (double)float_bad / (double)n);
     intersector = AS_INTERSECTOR_WATERTIGHT_DOUBLE;
     CHECK_EQ_U64(against_reference("dynamic range, double test", c.mesh, s, c.rays, n), 0);
-    intersector = AS_INTERSECTOR_WATERTIGHT;
+    intersector = default_intersector;
     as_structure_release(s);
     as_stiff_case_free(&c);
 }
@@ -617,6 +632,9 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: test_stiff [--gpu] STRUCTURE BUILDER LAYOUT [CASE]\n       test_stiff --generator\n");
         return 2;
     }
+    as_trace_args_t defaults;
+    as_trace_args_default(&defaults);
+    intersector = default_intersector = defaults.intersector;
     as_build_args_default(&variant);
     variant.structure = as_structure_kind_from_name(argv[1]);
     variant.builder = as_builder_from_name(variant.structure, argv[2]);
@@ -629,6 +647,7 @@ int main(int argc, char **argv)
     const char *only = argc > 4 ? argv[4] : NULL;
 #define CASE(name, fn) if (!only || strcmp(only, name) == 0) RUN_TEST(fn)
     CASE("watertight", watertight_meshes_have_zero_leaks_far_from_the_origin);
+    CASE("watertight_float", float_watertight_test_has_zero_leaks_too);
     CASE("moller_leaks", moller_trumbore_leaks_where_the_watertight_test_does_not);
     CASE("seam", quad_seam_rays_hit_one_of_the_two);
     CASE("signed_zero", signed_zero_directions_give_identical_results);

@@ -443,8 +443,9 @@ typedef enum as_upload_method {
 
 typedef enum as_intersector {
     AS_INTERSECTOR_WATERTIGHT = 0,        /* Woop et al. 2013 in float, explicitly rounded */
-    AS_INTERSECTOR_WATERTIGHT_DOUBLE = 1, /* the same test in double: also exact where float
-                                             cancels (huge or tiny triangles for their distance) */
+    AS_INTERSECTOR_WATERTIGHT_DOUBLE = 1, /* the default: the same test in double, also exact
+                                             where float cancels (huge or tiny triangles for their
+                                             distance); decides as the verification reference does */
     AS_INTERSECTOR_MOLLER_TRUMBORE = 2    /* Moller & Trumbore 1997 in float, for comparison:
                                              not watertight (rays slip through shared edges) */
 } as_intersector_t;
@@ -460,7 +461,7 @@ typedef struct as_trace_args {
     bool collect_stats;          /* also count steps and triangle tests per ray, in a
                                     separate pass (GPU: a separately compiled kernel)
                                     so the timed pass does not pay for counting */
-    as_intersector_t intersector;
+    as_intersector_t intersector; /* default AS_INTERSECTOR_WATERTIGHT_DOUBLE */
     as_residency_t residency;    /* GPU: where the structure lives (first GPU trace) */
     as_upload_method_t upload;   /* GPU: how sections reach device memory */
     uint64_t device_memory_limit; /* GPU: bytes the structure may take in device
