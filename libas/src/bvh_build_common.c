@@ -470,6 +470,7 @@ void bvh_make_leaf(bvh_builder *b, int32_t node, const bvh_ref *refs, uint32_t c
     n->left = n->right = -1;
     n->refs = refs; /* an SBVH leaf owns it, even when empty */
     n->count = count;
+    n->inner = 0;
     bvh_report_progress(b, count);
 }
 
@@ -500,6 +501,7 @@ void bvh_local_leaf(bvh_local *l, int32_t node, const bvh_ref *refs, uint32_t co
     n->left = n->right = -1;
     n->refs = refs; /* an SBVH leaf owns it, even when empty */
     n->count = count;
+    n->inner = 0;
     l->prims += count;
     /* Progress is reported in steps below its 1% granularity. */
     if (l->prims > (l->b->prim_total >> 8)) {
@@ -514,7 +516,7 @@ void bvh_local_flush(bvh_local *l)
     for (; l->next < l->end; ++l->next) {
         bvh_tmp_node *n = &b->nodes[l->next];
         n->left = n->right = -1;
-        n->count = 0;
+        n->count = n->inner = 0;
         n->refs = NULL;
     }
     if (l->prims) bvh_report_progress(b, l->prims);
@@ -858,36 +860,29 @@ typedef struct inplace_ctx {
     bvh_split_fn split;
 } inplace_ctx;
 
-/* Builds the subtree of task t: recurses into the left child and loops on
- * the right one, and hands a child to an idle thread when it is big enough
- * to be worth it. */
-static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, inplace_task t)
+/* Builds the subtree of task t, handing the right child to an idle thread
+ * when it is big enough to be worth it, and records the subtree's size
+ * once both children are done (the recursion is no deeper than the depth
+ * cap). */
+static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, const inplace_task *t)
 {
     bvh_builder *b = ctx->b;
-    for (;;) {
-        bvh_tmp_node *n = &b->nodes[t.node];
-        n->box = t.range.box;
-        bvh_range l, r;
-        int32_t ln, rn;
-        /* A leaf at the stack's depth whatever its size: the traversal
-         * stack holds one entry per level. */
-        if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t.range.count <= 1 ||
-            t.depth + 1 >= b->depth_limit || !ctx->split(b, &t.range, &l, &r) || !bvh_local_pair(loc, &ln, &rn)) {
-            bvh_local_leaf(loc, t.node, b->refs + t.range.first, t.range.count);
-            return;
-        }
-        n->left = ln;
-        n->right = rn;
-        n->count = 0;
-        n->refs = NULL;
-        const inplace_task lt = {l, ln, t.depth + 1}, rt = {r, rn, t.depth + 1};
-        if (rt.range.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt)) {
-            t = lt;
-            continue;
-        }
-        inplace_subtree(pool, ctx, loc, lt);
-        t = rt;
+    b->nodes[t->node].box = t->range.box;
+    bvh_range l, r;
+    int32_t ln, rn;
+    /* A leaf at the stack's depth whatever its size: the traversal stack
+     * holds one entry per level. */
+    if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->range.count <= 1 ||
+        t->depth + 1 >= b->depth_limit || !ctx->split(b, &t->range, &l, &r) || !bvh_local_pair(loc, &ln, &rn)) {
+        bvh_local_leaf(loc, t->node, b->refs + t->range.first, t->range.count);
+        return;
     }
+    bvh_make_inner(b, t->node, ln, rn);
+    const inplace_task lt = {l, ln, t->depth + 1}, rt = {r, rn, t->depth + 1};
+    const int shared = rt.range.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt);
+    inplace_subtree(pool, ctx, loc, &lt);
+    if (!shared) inplace_subtree(pool, ctx, loc, &rt);
+    bvh_node_complete(b, t->node, shared);
 }
 
 static void inplace_run(as_task_pool *pool, void *task, void *user)
@@ -897,7 +892,7 @@ static void inplace_run(as_task_pool *pool, void *task, void *user)
     memcpy(&t, task, sizeof t);
     bvh_local loc;
     bvh_local_init(&loc, ctx->b);
-    inplace_subtree(pool, ctx, &loc, t);
+    inplace_subtree(pool, ctx, &loc, &t);
     bvh_local_flush(&loc);
 }
 
@@ -924,7 +919,29 @@ int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split)
     return root;
 }
 
-/* ---- the depth-first walk that fixes the output order */
+/* ---- the depth-first walk that fixes the output order
+ *
+ * The walk writes node n, gives its inner children the next two output
+ * slots (siblings adjacent) and its leaf children the next TRI4 entries,
+ * then walks its left subtree and its right one. A subtree of i inner nodes
+ * and c references therefore takes the i - 1 slots and the c triangles that
+ * follow wherever the walk has got to when it reaches the subtree, whatever
+ * is in it. So the top of the tree is walked on one thread, which only
+ * reserves those ranges for subtrees of up to a grain's size, and the
+ * subtrees are then written on every thread: the same bytes as one walk.
+ * The SAH sums are floating-point, so their order matters: in that case
+ * each node's and leaf's term is stored at its pre-order position and the
+ * terms are added afterwards in that order, as the one walk adds them. */
+
+typedef struct flatten_task {
+    int32_t tnode;
+    uint32_t depth;
+    uint64_t out_index;           /* the subtree root's slot */
+    uint64_t out_next;            /* the first slot of its descendants */
+    uint64_t inner_pos, leaf_pos; /* the first positions of its SAH terms */
+    uint32_t tri_next;            /* its first TRI4 entry */
+    double area;                  /* the root's half area */
+} flatten_task;
 
 typedef struct flatten_state {
     const bvh_builder *b;
@@ -934,7 +951,12 @@ typedef struct flatten_state {
     uint32_t tri_count;
     uint64_t leaf_count;
     uint32_t max_depth;
-    double inner_area, leaf_area_count;   /* SAH sums, in bvh2_walk's order */
+    double inner_area, leaf_area_count;   /* SAH sums, in bvh2_walk's order (one walk) */
+    double *inner_terms, *leaf_terms;     /* or their terms by pre-order position (NULL: summed) */
+    uint64_t inner_pos, leaf_pos;
+    uint32_t grain;          /* subtrees of at most this many inner nodes become tasks; 0: none */
+    flatten_task *tasks;
+    uint32_t task_count, task_capacity;
 } flatten_state;
 
 static void set_child_box(as_bvh2_node_t *o, int which, const bvh_box *bx)
@@ -986,10 +1008,36 @@ static double box_area(const bvh_box *bx)
     return as_half_area6(bx->lo[0], bx->hi[0], bx->lo[1], bx->hi[1], bx->lo[2], bx->hi[2]);
 }
 
+static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32_t depth, double area);
+
+/* Reserves the ranges of the subtree under tnode for a task, or walks it
+ * here when the task list cannot grow. */
+static void defer_subtree(flatten_state *st, int32_t tnode, uint64_t out_index, uint32_t depth, double area)
+{
+    if (st->task_count == st->task_capacity) {
+        const uint32_t cap = st->task_capacity ? 2 * st->task_capacity : 256;
+        flatten_task *grown = realloc(st->tasks, sizeof(flatten_task) * cap);
+        if (!grown) {
+            flatten(st, tnode, out_index, depth, area);
+            return;
+        }
+        st->tasks = grown;
+        st->task_capacity = cap;
+    }
+    const bvh_tmp_node *t = &st->b->nodes[tnode];
+    st->tasks[st->task_count++] = (flatten_task){tnode, depth, out_index, st->out_count, st->inner_pos, st->leaf_pos,
+                                                 st->tri_count, area};
+    st->out_count += t->inner - 1;
+    st->tri_count += t->count;
+    st->inner_pos += t->inner;
+    st->leaf_pos += (uint64_t)t->inner + 1; /* a binary tree's leaves */
+}
+
 static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32_t depth, double area)
 {
     const bvh_tmp_node *t = &st->b->nodes[tnode];
-    st->inner_area += area;
+    if (st->inner_terms) st->inner_terms[st->inner_pos++] = area;
+    else st->inner_area += area;
     if (depth > st->max_depth) st->max_depth = depth;
     const int32_t kids[2] = {t->left, t->right};
     /* Reserve both inner children first so siblings are adjacent. The
@@ -1014,13 +1062,118 @@ static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32
             if (c->count == 0) {
                 const bvh_box inverted = {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
                 set_child_box(o, k, &inverted);
-            } else {
-                st->leaf_area_count += box_area(&c->box) * c->count;
             }
+            /* An empty leaf's term is +0, which leaves the sum's bits alone. */
+            const double term = c->count ? box_area(&c->box) * c->count : 0.0;
+            if (st->leaf_terms) st->leaf_terms[st->leaf_pos++] = term;
+            else if (c->count) st->leaf_area_count += term;
         }
     }
-    for (int k = 0; k < 2; ++k)
-        if (slot[k] >= 0) flatten(st, kids[k], (uint64_t)slot[k], depth + 1, box_area(&st->b->nodes[kids[k]].box));
+    for (int k = 0; k < 2; ++k) {
+        if (slot[k] < 0) continue;
+        const bvh_tmp_node *c = &st->b->nodes[kids[k]];
+        if (c->inner <= st->grain) defer_subtree(st, kids[k], (uint64_t)slot[k], depth + 1, box_area(&c->box));
+        else flatten(st, kids[k], (uint64_t)slot[k], depth + 1, box_area(&c->box));
+    }
+}
+
+/* Subtree sizes of the inner nodes whose subtrees were built by more than
+ * one task (bvh_node_complete left them unknown): the top of the tree. */
+static void complete_counts(bvh_builder *b, int32_t node)
+{
+    bvh_tmp_node *n = &b->nodes[node];
+    if (n->left < 0 || n->inner) return;
+    complete_counts(b, n->left);
+    complete_counts(b, n->right);
+    bvh_node_complete(b, node, 0);
+}
+
+typedef struct walk_job {
+    const flatten_state *top;
+    atomic_uint next;
+    struct {
+        uint64_t leaf_count;
+        uint32_t max_depth;
+        int bad;
+    } part[256];
+} walk_job;
+
+/* Writes tasks, taken in order from a shared counter, until none is left. */
+static void walk_tasks(void *user, unsigned i, unsigned n)
+{
+    (void)n;
+    walk_job *j = user;
+    flatten_state st = *j->top;
+    st.grain = 0;
+    st.leaf_count = 0;
+    st.max_depth = 0;
+    int bad = 0;
+    for (;;) {
+        const uint32_t k = atomic_fetch_add_explicit(&j->next, 1, memory_order_relaxed);
+        if (k >= j->top->task_count) break;
+        const flatten_task *t = &j->top->tasks[k];
+        const bvh_tmp_node *tn = &st.b->nodes[t->tnode];
+        st.out_count = t->out_next;
+        st.tri_count = t->tri_next;
+        st.inner_pos = t->inner_pos;
+        st.leaf_pos = t->leaf_pos;
+        flatten(&st, t->tnode, t->out_index, t->depth, t->area);
+        if (st.out_count != t->out_next + tn->inner - 1 || st.tri_count != t->tri_next + tn->count) bad = 1;
+    }
+    j->part[i].leaf_count = st.leaf_count;
+    j->part[i].max_depth = st.max_depth;
+    j->part[i].bad = bad;
+}
+
+/* Trees with fewer inner nodes than this are written by one thread. */
+#define BVH_WALK_MT_MIN_NODES 8192
+
+/* Writes the tree under root into out and tris, filling st's counts and SAH
+ * sums; on several threads when asked and the tree is big enough. Returns 0
+ * when the subtree sizes disagree with what was written. */
+static int write_tree(flatten_state *st, int32_t root, double root_area, unsigned threads)
+{
+    const uint32_t inner = st->b->nodes[root].inner;
+    if (threads > 256) threads = 256;
+    if (threads > 1 && inner >= BVH_WALK_MT_MIN_NODES) {
+        st->inner_terms = malloc(sizeof(double) * inner);
+        st->leaf_terms = malloc(sizeof(double) * ((size_t)inner + 1));
+        if (!st->inner_terms || !st->leaf_terms) {
+            free(st->inner_terms);
+            free(st->leaf_terms);
+            st->inner_terms = st->leaf_terms = NULL;
+        }
+    }
+    if (!st->inner_terms) {
+        flatten(st, root, 0, 0, root_area);
+        return 1;
+    }
+    /* About 32 tasks per thread, so that the last one to finish leaves the
+     * others idle for little. */
+    st->grain = inner / (32 * threads);
+    flatten(st, root, 0, 0, root_area);
+    /* The reserved ranges cover every position exactly. */
+    const int ok = st->inner_pos == inner && st->leaf_pos == (uint64_t)inner + 1;
+    int bad = 0;
+    if (ok) {
+        walk_job job;
+        job.top = st;
+        atomic_init(&job.next, 0);
+        as_parallel_run(threads, walk_tasks, &job);
+        for (unsigned i = 0; i < threads; ++i) {
+            st->leaf_count += job.part[i].leaf_count;
+            if (job.part[i].max_depth > st->max_depth) st->max_depth = job.part[i].max_depth;
+            bad |= job.part[i].bad;
+        }
+        for (uint32_t i = 0; i < inner; ++i) st->inner_area += st->inner_terms[i];
+        for (uint32_t i = 0; i <= inner; ++i) st->leaf_area_count += st->leaf_terms[i];
+    }
+    free(st->inner_terms);
+    free(st->leaf_terms);
+    free(st->tasks);
+    st->inner_terms = st->leaf_terms = NULL;
+    st->tasks = NULL;
+    return ok && !bad;
 }
 
 as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id, as_structure_t *s,
@@ -1037,17 +1190,21 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
         b->nodes[r].box = bvh_box_empty();
         b->nodes[r].left = b->nodes[r].right = -1;
         b->nodes[r].refs = NULL;
-        b->nodes[r].count = 0;
-        b->nodes[root].left = l;
-        b->nodes[root].right = r;
+        b->nodes[r].count = b->nodes[r].inner = 0;
+        bvh_make_inner(b, root, l, r);
         atomic_fetch_add(&b->inner_count, 1);
     }
+    complete_counts(b, root);
     /* One per split (bvh_local_flush counted them); every leaf
      * reported its references to the progress count. */
     const uint64_t inner = atomic_load(&b->inner_count);
     const uint64_t refs = atomic_load(&b->prims_done);
     if (refs > INT32_MAX) return as_set_error(AS_ERROR_UNSUPPORTED, "%llu references exceed the 31-bit TRI4 range",
                                               (unsigned long long)refs);
+    if (b->nodes[root].inner != inner || b->nodes[root].count != refs)
+        return as_set_error(AS_ERROR_UNKNOWN, "BVH build bookkeeping: %u inner nodes and %u references in the tree, %llu and %llu counted",
+                            b->nodes[root].inner, b->nodes[root].count, (unsigned long long)inner,
+                            (unsigned long long)refs);
     as_bvh2_node_t *out = as_aligned_alloc(sizeof(as_bvh2_node_t) * inner, "BVH2 nodes");
     as_tri4_t *tris = as_aligned_alloc(sizeof(as_tri4_t) * (size_t)(refs ? refs : 1), "TRI4 triangles");
     if (!out || !tris) {
@@ -1060,14 +1217,23 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
     const as_mesh_t *mesh = b->mesh;
     const double root_area = as_half_area6(mesh->bounds_lo[0], mesh->bounds_hi[0], mesh->bounds_lo[1],
                                            mesh->bounds_hi[1], mesh->bounds_lo[2], mesh->bounds_hi[2]);
-    flatten_state st = {b, out, 1, tris, 0, 0, 0, 0.0, 0.0};
-    flatten(&st, root, 0, 0, root_area);
-    fill_job fj = {mesh, tris, st.tri_count};
-    as_parallel_run(st.tri_count >= 65536 ? (unsigned)b->max_threads + 1 : 1, fill_tris, &fj);
-    if (st.out_count != inner || st.tri_count != refs)
+    flatten_state st;
+    memset(&st, 0, sizeof st);
+    st.b = b;
+    st.out = out;
+    st.out_count = 1;
+    st.tris = tris;
+    const unsigned threads = (unsigned)b->max_threads + 1;
+    const int ok = write_tree(&st, root, root_area, threads);
+    if (!ok || st.out_count != inner || st.tri_count != refs) {
+        free(out);
+        free(tris);
         return as_set_error(AS_ERROR_UNKNOWN, "BVH build bookkeeping: %llu nodes and %u references written, %llu and %llu counted",
                             (unsigned long long)st.out_count, st.tri_count, (unsigned long long)inner,
                             (unsigned long long)refs);
+    }
+    fill_job fj = {mesh, tris, st.tri_count};
+    as_parallel_run(st.tri_count >= 65536 ? threads : 1, fill_tris, &fj);
 
     const as_build_args_t *args = b->args;
     as_structure_t cb;

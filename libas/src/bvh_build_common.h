@@ -29,14 +29,21 @@ typedef struct bvh_box {
     float lo[3], hi[3];
 } bvh_box;
 
-/* A node of the temporary tree. A leaf points at its references: a range of
- * the builder's array (in-place builders) or an array of its own (SBVH). */
+/* A node of the temporary tree, 48 bytes, read and written only on the
+ * CPU. A leaf points at its references: a range of the builder's array
+ * (in-place builders) or an array of its own (SBVH). An inner node carries
+ * its subtree's size once the thread that built the subtree has finished it
+ * (bvh_node_complete; bvh_builder_finish completes the rest), so that the
+ * output walk knows where each subtree's nodes and triangles go before it
+ * writes them, and can write subtrees on several threads. */
 typedef struct bvh_tmp_node {
     bvh_box box;
     int32_t left, right;   /* tmp indices; -1 for a leaf */
-    uint32_t count;        /* leaf references */
-    const bvh_ref *refs;   /* leaf references, NULL when count is 0 */
+    uint32_t count;        /* leaf: its references; inner: its subtree's leaves' references */
+    uint32_t inner;        /* leaf: 0; inner: inner nodes of its subtree (itself included), 0 while not known */
+    const bvh_ref *refs;   /* leaf references, NULL when count is 0; NULL for an inner node */
 } bvh_tmp_node;
+_Static_assert(sizeof(bvh_tmp_node) == 48, "bvh_tmp_node is 48 bytes");
 
 typedef struct bvh_builder {
     const as_build_args_t *args;
@@ -219,6 +226,30 @@ void bvh_report_progress(bvh_builder *b, uint64_t prims);
 /* A fresh tmp node index, or -1 when the capacity is exhausted. */
 int32_t bvh_new_node(bvh_builder *b);
 void bvh_make_leaf(bvh_builder *b, int32_t node, const bvh_ref *refs, uint32_t count);
+/* Makes `node` inner with children left and right, its subtree size not yet
+ * known. */
+static inline void bvh_make_inner(bvh_builder *b, int32_t node, int32_t left, int32_t right)
+{
+    bvh_tmp_node *n = &b->nodes[node];
+    n->left = left;
+    n->right = right;
+    n->count = 0;
+    n->inner = 0;
+    n->refs = NULL;
+}
+/* Sets an inner node's subtree size from its children's, once the calling
+ * thread has built both children's subtrees itself. When another task took
+ * one of them (child_shared), the size stays unknown: the node is not read,
+ * since that task may still be writing it. */
+static inline void bvh_node_complete(bvh_builder *b, int32_t node, int child_shared)
+{
+    bvh_tmp_node *n = &b->nodes[node];
+    if (child_shared) return;
+    const bvh_tmp_node *l = &b->nodes[n->left], *r = &b->nodes[n->right];
+    if ((l->left >= 0 && !l->inner) || (r->left >= 0 && !r->inner)) return;
+    n->inner = 1 + l->inner + r->inner;
+    n->count = l->count + r->count;
+}
 
 /* A range of the builder's reference array with its bounds. */
 typedef struct bvh_range {

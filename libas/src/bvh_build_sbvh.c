@@ -527,46 +527,42 @@ static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uin
     return ok;
 }
 
-static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_task t)
+/* Builds the subtree of task t, handing the right child to an idle thread
+ * when it is big enough to be worth it, and records the subtree's size
+ * once both children are done (the recursion is no deeper than the depth
+ * cap). */
+static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, const sbvh_task *t)
 {
-    bvh_builder *b = t.ctx->b;
-    for (;;) {
-        sides sd = {NULL, NULL, 0, 0};
-        int32_t l, r;
-        if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t.count <= 1 || t.depth + 1 >= b->depth_limit ||
-            !sbvh_split(t.ctx, &b->nodes[t.node].box, t.refs, t.count, t.budget, t.depth == 0, &sd)) {
-            bvh_local_leaf(loc, t.node, t.refs, t.count);
-            return;
-        }
-        if (!bvh_local_pair(loc, &l, &r)) {
-            sides_free(&sd);
-            bvh_local_leaf(loc, t.node, t.refs, t.count);
-            return;
-        }
-        free(t.refs);
-        const uint64_t spent = (uint64_t)sd.nl + sd.nr - t.count;
-        const uint64_t rest = t.budget - spent;
-        const uint64_t lbudget = (uint64_t)((double)rest * sd.nl / ((double)sd.nl + sd.nr));
-        const uint64_t rbudget = rest - lbudget;
-
-        bvh_tmp_node *ln = &b->nodes[l], *rn = &b->nodes[r];
-        ln->box = bvh_refs_box(sd.l, sd.nl);
-        rn->box = bvh_refs_box(sd.r, sd.nr);
-        bvh_tmp_node *n = &b->nodes[t.node];
-        n->left = l;
-        n->right = r;
-        n->count = 0;
-        n->refs = NULL;
-
-        const sbvh_task lt = {t.ctx, l, sd.l, sd.nl, lbudget, t.depth + 1};
-        const sbvh_task rt = {t.ctx, r, sd.r, sd.nr, rbudget, t.depth + 1};
-        if (rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt)) {
-            t = lt;
-            continue;
-        }
-        sbvh_subtree(pool, loc, lt);
-        t = rt;
+    bvh_builder *b = t->ctx->b;
+    sides sd = {NULL, NULL, 0, 0};
+    int32_t l, r;
+    if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->count <= 1 || t->depth + 1 >= b->depth_limit ||
+        !sbvh_split(t->ctx, &b->nodes[t->node].box, t->refs, t->count, t->budget, t->depth == 0, &sd)) {
+        bvh_local_leaf(loc, t->node, t->refs, t->count);
+        return;
     }
+    if (!bvh_local_pair(loc, &l, &r)) {
+        sides_free(&sd);
+        bvh_local_leaf(loc, t->node, t->refs, t->count);
+        return;
+    }
+    free(t->refs);
+    const uint64_t spent = (uint64_t)sd.nl + sd.nr - t->count;
+    const uint64_t rest = t->budget - spent;
+    const uint64_t lbudget = (uint64_t)((double)rest * sd.nl / ((double)sd.nl + sd.nr));
+    const uint64_t rbudget = rest - lbudget;
+
+    bvh_tmp_node *ln = &b->nodes[l], *rn = &b->nodes[r];
+    ln->box = bvh_refs_box(sd.l, sd.nl);
+    rn->box = bvh_refs_box(sd.r, sd.nr);
+    bvh_make_inner(b, t->node, l, r);
+
+    const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, lbudget, t->depth + 1};
+    const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, rbudget, t->depth + 1};
+    const int shared = rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt);
+    sbvh_subtree(pool, loc, &lt);
+    if (!shared) sbvh_subtree(pool, loc, &rt);
+    bvh_node_complete(b, t->node, shared);
 }
 
 static void sbvh_run(as_task_pool *pool, void *task, void *user)
@@ -576,7 +572,7 @@ static void sbvh_run(as_task_pool *pool, void *task, void *user)
     memcpy(&t, task, sizeof t);
     bvh_local loc;
     bvh_local_init(&loc, t.ctx->b);
-    sbvh_subtree(pool, &loc, t);
+    sbvh_subtree(pool, &loc, &t);
     bvh_local_flush(&loc);
 }
 
