@@ -37,11 +37,104 @@
  * time. */
 #define SBVH_SPATIAL_BINS 16u
 
+/* Reference memory, one per running task (a thread builds one task at a
+ * time), kept for the whole build and handed from task to task:
+ *
+ * - an arena for the sides of nodes below BVH_PARALLEL_MIN_PRIMS, whose
+ *   subtrees this thread builds alone, depth first: a node's sides are
+ *   taken from the top and given back when both children's subtrees are
+ *   done (larger nodes, whose right side may go to another task, and sides
+ *   that do not fit, come from malloc);
+ * - a store for the leaves' references, copied in when a leaf is made and
+ *   freed in chunks at the end.
+ *
+ * So a split below that size costs no malloc and no free, the leaves need
+ * no free of their own (which one thread did for every leaf after the
+ * output walk), and the arena is reused while it is still in the cache. */
+#define SBVH_ARENA_REFS 32768u      /* 1 MB: about 4 x BVH_PARALLEL_MIN_PRIMS, a path of sides */
+#define SBVH_LEAF_CHUNK_REFS 8192u  /* 256 KB */
+
+typedef struct sbvh_chunk {
+    struct sbvh_chunk *next;
+    char pad[32 - sizeof(void *)];  /* the references start 32 bytes in */
+} sbvh_chunk;
+
+typedef struct sbvh_mem {
+    struct sbvh_mem *next_free, *next_all;
+    bvh_ref *arena;
+    uint32_t arena_top;
+    bvh_ref *leaf;               /* the current chunk's references */
+    uint32_t leaf_top, leaf_cap;
+    sbvh_chunk *chunks;          /* every leaf chunk, freed at the end */
+} sbvh_mem;
+
 typedef struct sbvh_ctx {
     bvh_builder *b;
     double alpha_area;   /* overlap threshold: sbvh_alpha x root half area */
     float fraction[SBVH_SPATIAL_BINS + 1]; /* i / bins, for the planes */
+    pthread_mutex_t mem_lock;
+    sbvh_mem *free_mems, *all_mems;
+    atomic_int out_of_memory;    /* a leaf could not be stored */
 } sbvh_ctx;
+
+static sbvh_mem *mem_acquire(sbvh_ctx *ctx)
+{
+    pthread_mutex_lock(&ctx->mem_lock);
+    sbvh_mem *m = ctx->free_mems;
+    if (m) {
+        ctx->free_mems = m->next_free;
+    } else if ((m = calloc(1, sizeof *m)) != NULL) {
+        m->arena = malloc(sizeof(bvh_ref) * SBVH_ARENA_REFS); /* NULL: every side from malloc */
+        m->next_all = ctx->all_mems;
+        ctx->all_mems = m;
+    }
+    pthread_mutex_unlock(&ctx->mem_lock);
+    return m;
+}
+
+static void mem_release(sbvh_ctx *ctx, sbvh_mem *m)
+{
+    if (!m) return;
+    pthread_mutex_lock(&ctx->mem_lock);
+    m->next_free = ctx->free_mems;
+    ctx->free_mems = m;
+    pthread_mutex_unlock(&ctx->mem_lock);
+}
+
+static void mem_free_all(sbvh_ctx *ctx)
+{
+    for (sbvh_mem *m = ctx->all_mems, *next; m; m = next) {
+        next = m->next_all;
+        for (sbvh_chunk *c = m->chunks, *cn; c; c = cn) {
+            cn = c->next;
+            free(c);
+        }
+        free(m->arena);
+        free(m);
+    }
+    ctx->all_mems = ctx->free_mems = NULL;
+}
+
+/* A copy of a leaf's references in the store; NULL when count is 0 or no
+ * memory is left. */
+static const bvh_ref *leaf_store(sbvh_mem *m, const bvh_ref *refs, uint32_t count)
+{
+    if (!m || count == 0) return NULL;
+    if (count > m->leaf_cap - m->leaf_top) {
+        const uint32_t cap = count > SBVH_LEAF_CHUNK_REFS ? count : SBVH_LEAF_CHUNK_REFS;
+        sbvh_chunk *c = malloc(sizeof(sbvh_chunk) + sizeof(bvh_ref) * (size_t)cap);
+        if (!c) return NULL;
+        c->next = m->chunks;
+        m->chunks = c;
+        m->leaf = (bvh_ref *)(c + 1);
+        m->leaf_top = 0;
+        m->leaf_cap = cap;
+    }
+    bvh_ref *dst = m->leaf + m->leaf_top;
+    memcpy(dst, refs, sizeof(bvh_ref) * count);
+    m->leaf_top += count;
+    return dst;
+}
 
 /* ---- reference clipping */
 
@@ -341,25 +434,49 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
 
 /* ---- partitions into two new arrays */
 
+/* Both sides of a split, each with room for every reference of the node:
+ * from the arena (arena_mark: its top before, owned 0) or from malloc. */
 typedef struct sides {
     bvh_ref *l, *r;
     uint32_t nl, nr;
+    int owned;
+    uint32_t arena_mark;
 } sides;
 
-static void sides_free(sides *s)
+static int sides_alloc(sbvh_mem *m, uint32_t count, sides *out)
 {
-    free(s->l);
-    free(s->r);
+    out->nl = out->nr = 0;
+    const uint32_t cap = count ? count : 1;
+    if (m && m->arena && count < BVH_PARALLEL_MIN_PRIMS && 2 * cap <= SBVH_ARENA_REFS - m->arena_top) {
+        out->owned = 0;
+        out->arena_mark = m->arena_top;
+        out->l = m->arena + m->arena_top;
+        out->r = out->l + cap;
+        m->arena_top += 2 * cap;
+        return 1;
+    }
+    out->owned = 1;
+    out->l = malloc(sizeof(bvh_ref) * cap);
+    out->r = malloc(sizeof(bvh_ref) * cap);
+    return out->l && out->r;
+}
+
+/* Gives the sides' memory back; arena sides must be the arena's last. */
+static void sides_free(sbvh_mem *m, sides *s)
+{
+    if (s->owned) {
+        free(s->l);
+        free(s->r);
+    } else if (s->l) {
+        m->arena_top = s->arena_mark;
+    }
     s->l = s->r = NULL;
     s->nl = s->nr = 0;
 }
 
-static int partition_object(const bvh_ref *refs, uint32_t count, const bvh_object_split *s, sides *out)
+static int partition_object(sbvh_mem *m, const bvh_ref *refs, uint32_t count, const bvh_object_split *s, sides *out)
 {
-    out->l = malloc(sizeof(bvh_ref) * count);
-    out->r = malloc(sizeof(bvh_ref) * count);
-    out->nl = out->nr = 0;
-    if (!out->l || !out->r) return 0;
+    if (!sides_alloc(m, count, out)) return 0;
     for (uint32_t i = 0; i < count; ++i) {
         if (bvh_object_split_left(&refs[i], s)) out->l[out->nl++] = refs[i];
         else out->r[out->nr++] = refs[i];
@@ -367,11 +484,9 @@ static int partition_object(const bvh_ref *refs, uint32_t count, const bvh_objec
     return 1;
 }
 
-static int partition_half(const bvh_ref *refs, uint32_t count, sides *out)
+static int partition_half(sbvh_mem *m, const bvh_ref *refs, uint32_t count, sides *out)
 {
-    out->l = malloc(sizeof(bvh_ref) * count);
-    out->r = malloc(sizeof(bvh_ref) * count);
-    if (!out->l || !out->r) return 0;
+    if (!sides_alloc(m, count, out)) return 0;
     out->nl = count / 2;
     out->nr = count - count / 2;
     memcpy(out->l, refs, sizeof(bvh_ref) * out->nl);
@@ -381,13 +496,10 @@ static int partition_half(const bvh_ref *refs, uint32_t count, sides *out)
 
 /* Clips straddling references at the plane, or keeps one whole on the side
  * where the SAH says it costs less (unsplitting). */
-static int partition_spatial(const bvh_builder *b, const bvh_ref *refs, uint32_t count, const spatial_split *s,
-                             sides *out)
+static int partition_spatial(const bvh_builder *b, sbvh_mem *m, const bvh_ref *refs, uint32_t count,
+                             const spatial_split *s, sides *out)
 {
-    out->l = malloc(sizeof(bvh_ref) * count);
-    out->r = malloc(sizeof(bvh_ref) * count);
-    out->nl = out->nr = 0;
-    if (!out->l || !out->r) return 0;
+    if (!sides_alloc(m, count, out)) return 0;
     const int axis = s->axis;
     const float pos = s->pos;
     const double al = bvh_box_half_area(&s->left), ar = bvh_box_half_area(&s->right);
@@ -428,18 +540,16 @@ static int partition_spatial(const bvh_builder *b, const bvh_ref *refs, uint32_t
 typedef struct sbvh_task {
     sbvh_ctx *ctx;
     int32_t node;
-    bvh_ref *refs;       /* owned by the task */
+    bvh_ref *refs;       /* the task's: malloc'd (owned) or in the arena of the thread that builds it */
     uint32_t count;
+    int owned;
     uint64_t budget;     /* extra references this subtree may add */
     uint32_t depth;
 } sbvh_task;
 
-static void copy_sides(const bvh_ref *refs, uint32_t count, uint32_t nl, sides *out)
+static void copy_sides(sbvh_mem *m, const bvh_ref *refs, uint32_t count, uint32_t nl, sides *out)
 {
-    out->l = malloc(sizeof(bvh_ref) * (nl ? nl : 1));
-    out->r = malloc(sizeof(bvh_ref) * (count - nl ? count - nl : 1));
-    out->nl = out->nr = 0;
-    if (!out->l || !out->r) return;
+    if (!sides_alloc(m, count, out)) return;
     out->nl = nl;
     out->nr = count - nl;
     memcpy(out->l, refs, sizeof(bvh_ref) * nl);
@@ -448,8 +558,8 @@ static void copy_sides(const bvh_ref *refs, uint32_t count, uint32_t nl, sides *
 
 /* Splits one node into `sd` (both sides non-empty), or returns 0 for a
  * leaf. `refs` may be reordered. */
-static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uint32_t count, uint64_t budget, int root,
-                      sides *sd)
+static int sbvh_split(sbvh_ctx *ctx, sbvh_mem *m, const bvh_box *node_box, bvh_ref *refs, uint32_t count,
+                      uint64_t budget, int root, sides *sd)
 {
     bvh_builder *b = ctx->b;
     const float ci = b->args->cost_intersection, ct = b->args->cost_traversal;
@@ -501,7 +611,7 @@ static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uin
     if (!(split_cost < leaf_cost) && !must_split) return 0;
     int ok = 0;
     if (use_spatial) {
-        ok = partition_spatial(b, refs, count, &ss, sd);
+        ok = partition_spatial(b, m, refs, count, &ss, sd);
         /* A split that leaves a side empty or overspends falls back. */
         if (ok && (sd->nl == 0 || sd->nr == 0 || (uint64_t)sd->nl + sd->nr - count > budget)) ok = 0;
         /* The bins only estimate the cost: a split that turns out no
@@ -511,18 +621,18 @@ static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uin
             const bvh_box lb = bvh_refs_box(sd->l, sd->nl), rb = bvh_refs_box(sd->r, sd->nr);
             if (bvh_box_half_area(&lb) * sd->nl + bvh_box_half_area(&rb) * sd->nr >= os.cost) ok = 0;
         }
-        if (!ok) sides_free(sd);
+        if (!ok) sides_free(m, sd);
     }
     if (!ok && os.axis >= 0) {
-        if (small_nl) copy_sides(refs, count, small_nl, sd);
-        else ok = partition_object(refs, count, &os, sd);
+        if (small_nl) copy_sides(m, refs, count, small_nl, sd);
+        else ok = partition_object(m, refs, count, &os, sd);
         ok = sd->nl > 0 && sd->nr > 0;
-        if (!ok) sides_free(sd);
+        if (!ok) sides_free(m, sd);
     }
     if (!ok && must_split) {
         /* All centroids coincide (copies of one triangle): halve the list. */
-        ok = partition_half(refs, count, sd);
-        if (!ok) sides_free(sd);
+        ok = partition_half(m, refs, count, sd);
+        if (!ok) sides_free(m, sd);
     }
     return ok;
 }
@@ -531,22 +641,45 @@ static int sbvh_split(sbvh_ctx *ctx, const bvh_box *node_box, bvh_ref *refs, uin
  * when it is big enough to be worth it, and records the subtree's size
  * once both children are done (the recursion is no deeper than the depth
  * cap). */
-static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, const sbvh_task *t)
+/* Makes node a leaf of the task's references, copied into the store; the
+ * task's array is given back (an arena one by whoever took it). */
+static void sbvh_leaf(bvh_local *loc, sbvh_mem *m, const sbvh_task *t)
+{
+    const bvh_ref *stored = NULL;
+    uint32_t count = t->count;
+    if (count && !atomic_load_explicit(&loc->b->cancelled, memory_order_relaxed)) {
+        stored = leaf_store(m, t->refs, count);
+        if (!stored) {
+            /* The tree cannot be completed: the build ends with the error. */
+            atomic_store(&t->ctx->out_of_memory, 1);
+            atomic_store(&loc->b->cancelled, 1);
+        }
+    }
+    if (!stored) count = 0; /* cancelled: the tree is thrown away */
+    if (t->owned) free(t->refs);
+    bvh_local_leaf(loc, t->node, stored, count);
+}
+
+/* Builds the subtree of task t, handing the right child to an idle thread
+ * when it is big enough to be worth it, and records the subtree's size
+ * once both children are done (the recursion is no deeper than the depth
+ * cap). */
+static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, const sbvh_task *t)
 {
     bvh_builder *b = t->ctx->b;
-    sides sd = {NULL, NULL, 0, 0};
+    sides sd = {NULL, NULL, 0, 0, 0, 0};
     int32_t l, r;
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->count <= 1 || t->depth + 1 >= b->depth_limit ||
-        !sbvh_split(t->ctx, &b->nodes[t->node].box, t->refs, t->count, t->budget, t->depth == 0, &sd)) {
-        bvh_local_leaf(loc, t->node, t->refs, t->count);
+        !sbvh_split(t->ctx, m, &b->nodes[t->node].box, t->refs, t->count, t->budget, t->depth == 0, &sd)) {
+        sbvh_leaf(loc, m, t);
         return;
     }
     if (!bvh_local_pair(loc, &l, &r)) {
-        sides_free(&sd);
-        bvh_local_leaf(loc, t->node, t->refs, t->count);
+        sides_free(m, &sd);
+        sbvh_leaf(loc, m, t);
         return;
     }
-    free(t->refs);
+    if (t->owned) free(t->refs);
     const uint64_t spent = (uint64_t)sd.nl + sd.nr - t->count;
     const uint64_t rest = t->budget - spent;
     const uint64_t lbudget = (uint64_t)((double)rest * sd.nl / ((double)sd.nl + sd.nr));
@@ -557,11 +690,14 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, const sbvh_task *t)
     rn->box = bvh_refs_box(sd.r, sd.nr);
     bvh_make_inner(b, t->node, l, r);
 
-    const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, lbudget, t->depth + 1};
-    const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, rbudget, t->depth + 1};
-    const int shared = rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt);
-    sbvh_subtree(pool, loc, &lt);
-    if (!shared) sbvh_subtree(pool, loc, &rt);
+    /* Owned sides pass to the children's tasks; arena sides come back
+     * here once both subtrees are done. */
+    const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, sd.owned, lbudget, t->depth + 1};
+    const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, sd.owned, rbudget, t->depth + 1};
+    const int shared = sd.owned && rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt);
+    sbvh_subtree(pool, loc, m, &lt);
+    if (!shared) sbvh_subtree(pool, loc, m, &rt);
+    if (!sd.owned) m->arena_top = sd.arena_mark;
     bvh_node_complete(b, t->node, shared);
 }
 
@@ -572,7 +708,9 @@ static void sbvh_run(as_task_pool *pool, void *task, void *user)
     memcpy(&t, task, sizeof t);
     bvh_local loc;
     bvh_local_init(&loc, t.ctx->b);
-    sbvh_subtree(pool, &loc, &t);
+    sbvh_mem *m = mem_acquire(t.ctx);
+    sbvh_subtree(pool, &loc, m, &t);
+    mem_release(t.ctx, m);
     bvh_local_flush(&loc);
 }
 
@@ -608,6 +746,9 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     bvh_ref *root_refs = b.refs;
     b.refs = NULL;
     sbvh_ctx ctx;
+    memset(&ctx, 0, sizeof ctx);
+    pthread_mutex_init(&ctx.mem_lock, NULL);
+    atomic_init(&ctx.out_of_memory, 0);
     ctx.b = &b;
     ctx.alpha_area = (double)args->sbvh_alpha * bvh_box_half_area(&b.root_box);
     const uint32_t spatial_bins = args->bin_count < SBVH_SPATIAL_BINS ? args->bin_count : SBVH_SPATIAL_BINS;
@@ -615,16 +756,18 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     const int32_t root = bvh_new_node(&b);
     b.nodes[root].box = b.root_box;
     b.nodes[root].left = b.nodes[root].right = -1;
-    const sbvh_task t = {&ctx, root, root_refs, b.ref_count, budget, 0};
+    const sbvh_task t = {&ctx, root, root_refs, b.ref_count, 1, budget, 0};
     const unsigned threads = (unsigned)b.max_threads + 1;
     b.root_threads = threads > 256 ? 256 : threads;
     if (threads < 2 || b.ref_count < 2 * BVH_PARALLEL_MIN_PRIMS || !as_task_pool_run(threads, sizeof t, &t, sbvh_run, NULL))
         sbvh_run(NULL, (void *)&t, NULL);
-    err = bvh_builder_finish(&b, root, AS_BUILDER_BVH_SBVH, s, t_start);
-    /* Every leaf owns its reference array. */
-    const uint64_t used = atomic_load(&b.node_next);
-    for (uint64_t i = 0; i < used && i < b.node_capacity; ++i)
-        if (b.nodes[i].left < 0) free((void *)b.nodes[i].refs);
+    if (atomic_load(&ctx.out_of_memory))
+        err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory storing the SBVH's leaf references");
+    else
+        err = bvh_builder_finish(&b, root, AS_BUILDER_BVH_SBVH, s, t_start);
+    /* The leaves' references live in the store. */
+    mem_free_all(&ctx);
+    pthread_mutex_destroy(&ctx.mem_lock);
     bvh_builder_free(&b);
     return err;
 }
