@@ -18,6 +18,7 @@ set(_as_cli_tests
   trace_validation_record_skips_known_files
   trace_camera_file_matches_options
   trace_ray_limit_traces_first_rays
+  trace_dump_rays_trace_back_to_the_same_hits
   bench_scene_writes_every_workload
   bench_sweep_writes_protocol_and_sweeps
   gpu_validation_refuses_damage

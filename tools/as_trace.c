@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <sys/stat.h>
 
 static const char *TOOL = "as-trace";
 
@@ -55,6 +56,10 @@ static void usage(void)
            "      --rays FILE            trace the rays of a ray file instead of a camera\n"
            "      --any-hit              with --rays: stop at the first hit\n"
            "      --hits-out FILE        write the hits (primary or --rays) as a hit file\n"
+           "      --dump DIR             write every traced workload's rays and hits as a ray\n"
+           "                             file and a hit file, DIR/NAME.rays and DIR/NAME.hits\n"
+           "                             (NAME: the workload's name, spaces as '-'), to trace\n"
+           "                             the same rays with another tracer or check them\n"
            "  -i, --image FILE.png       write an image: shaded primary hits, or AO when the\n"
            "                             workload is ao\n"
            "      --heat-map FILE.png    write a heat map of the traversal steps of each\n"
@@ -125,6 +130,15 @@ typedef struct run_result {
 } run_result;
 
 static size_t verify_samples; /* 0: no verification */
+static const char *dump_dir;  /* --dump: where each workload's rays and hits go, or NULL */
+
+/* DIR/NAME.EXT with the spaces of NAME as '-'. */
+static void dump_path(char *out, size_t size, const char *name, const char *ext)
+{
+    snprintf(out, size, "%s/%s.%s", dump_dir, name, ext);
+    for (char *c = out + strlen(dump_dir) + 1; *c; ++c)
+        if (*c == ' ') *c = '-';
+}
 
 static double as_now_ms_tool(void)
 {
@@ -145,6 +159,13 @@ static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *
     if (as_trace(s, rays, count, hits, &args, &out->timing) != AS_OK) return tool_fail(TOOL);
     out->hit = 0;
     for (size_t i = 0; i < count; ++i) out->hit += hits[i].prim != AS_NO_HIT;
+    if (dump_dir) {
+        char path[4096];
+        dump_path(path, sizeof path, name, "rays");
+        if (as_rays_write(path, rays, count) != AS_OK) return tool_fail(TOOL);
+        dump_path(path, sizeof path, name, "hits");
+        if (as_hits_write(path, hits, count) != AS_OK) return tool_fail(TOOL);
+    }
     out->verified = false;
     if (verify_samples) {
         as_verify_args_t va;
@@ -284,7 +305,7 @@ int main(int argc, char **argv)
            OPT_NO_CHECKSUM, OPT_LIGHT, OPT_AO_RAYS, OPT_AO_RADIUS, OPT_DIFFUSE_RAYS, OPT_SCHEDULE, OPT_BATCH,
            OPT_STATS, OPT_VERIFY, OPT_RESIDENCY, OPT_UPLOAD, OPT_MEMLIMIT, OPT_BOUNCES, OPT_SHUFFLE, OPT_INTERSECTOR,
            OPT_HEAT_MAP, OPT_HEAT_MAX, OPT_REBUILD,
-           OPT_MATERIALS, OPT_VALIDATION_RECORD, OPT_UPLOAD_THREADS, OPT_UPLOAD_CHUNK, OPT_RAY_LIMIT };
+           OPT_MATERIALS, OPT_VALIDATION_RECORD, OPT_UPLOAD_THREADS, OPT_UPLOAD_CHUNK, OPT_RAY_LIMIT, OPT_DUMP };
     static const struct option opts[] = {
         {"device", required_argument, 0, 'd'},
         {"workload", required_argument, 0, 'w'},
@@ -300,6 +321,7 @@ int main(int argc, char **argv)
         {"ao-radius", required_argument, 0, OPT_AO_RADIUS},
         {"diffuse-rays", required_argument, 0, OPT_DIFFUSE_RAYS},
         {"ray-limit", required_argument, 0, OPT_RAY_LIMIT},
+        {"dump", required_argument, 0, OPT_DUMP},
         {"rays", required_argument, 0, OPT_RAYS},
         {"hits-out", required_argument, 0, OPT_HITS},
         {"image", required_argument, 0, 'i'},
@@ -377,6 +399,7 @@ int main(int argc, char **argv)
         case OPT_AO_RAYS: if (!tool_parse_u32(optarg, &ao_rays) || !ao_rays || ao_rays > 1024) return tool_usage_error(TOOL, "--ao-rays needs 1..1024, got '%s'", optarg); break;
         case OPT_AO_RADIUS: if (!tool_parse_float(optarg, &ao_radius) || ao_radius <= 0) return tool_usage_error(TOOL, "--ao-radius needs a number > 0, got '%s'", optarg); break;
         case OPT_DIFFUSE_RAYS: if (!tool_parse_u32(optarg, &diffuse_rays) || !diffuse_rays || diffuse_rays > 1024) return tool_usage_error(TOOL, "--diffuse-rays needs 1..1024, got '%s'", optarg); break;
+        case OPT_DUMP: dump_dir = optarg; break;
         case OPT_RAY_LIMIT: if (!tool_parse_u32(optarg, &ray_limit) || !ray_limit) return tool_usage_error(TOOL, "--ray-limit needs a positive ray count, got '%s'", optarg); break;
         case OPT_RAYS: rays_path = optarg; break;
         case OPT_HITS: hits_path = optarg; break;
@@ -455,6 +478,11 @@ int main(int argc, char **argv)
     if (materials_path && !(workloads & W_WHITTED))
         return tool_usage_error(TOOL, "--materials gives the whitted workload's materials: use it with -w whitted or all");
     if (have_eye != have_target) return tool_usage_error(TOOL, "--eye and --target go together");
+    struct stat dump_st;
+    if (dump_dir && (stat(dump_dir, &dump_st) != 0 || !S_ISDIR(dump_st.st_mode))) {
+        fprintf(stderr, "%s: error: --dump %s: not a directory\n", TOOL, dump_dir);
+        return EXIT_IO;
+    }
     const char *path = argv[optind];
 
     /* The CUDA context is made before the clock starts: the load time is
