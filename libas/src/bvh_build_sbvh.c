@@ -52,7 +52,7 @@
  * no free of their own (which one thread did for every leaf after the
  * output walk), and the arena is reused while it is still in the cache. */
 #define SBVH_ARENA_REFS 32768u      /* 1 MB: about 4 x BVH_PARALLEL_MIN_PRIMS, a path of sides */
-#define SBVH_LEAF_CHUNK_REFS 8192u  /* 256 KB */
+#define SBVH_LEAF_CHUNK_REFS 2048u  /* 64 KB */
 
 typedef struct sbvh_chunk {
     struct sbvh_chunk *next;
