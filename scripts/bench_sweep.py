@@ -55,7 +55,7 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.dont_write_bytecode = True
 sys.path.insert(0, HERE)
-from bench_scene import VARIANTS, run, first_line  # noqa: E402  (the same variants and tool runner)
+from bench_scene import VARIANTS, run, first_line, fmt  # noqa: E402  (the same variants, tool runner, cells)
 
 WORKLOADS = ["primary", "ao", "diffuse", "diffuse random"]
 LABELS = {"primary": "primary", "ao": "AO", "diffuse": "diffuse", "diffuse random": "random order"}
@@ -224,10 +224,6 @@ def add_ratios(row):
     if "bytes_per_triangle" in row:
         row["reference_bytes_per_triangle"] = REFERENCE_BYTES_PER_TRIANGLE
         row["bytes_goal"] = row["bytes_per_triangle"] <= REFERENCE_BYTES_PER_TRIANGLE
-
-
-def fmt(v, spec):
-    return "-" if v is None else format(v, spec)
 
 
 def fmt_mrays(v):

@@ -132,12 +132,22 @@ typedef struct run_result {
 static size_t verify_samples; /* 0: no verification */
 static const char *dump_dir;  /* --dump: where each workload's rays and hits go, or NULL */
 
-/* DIR/NAME.EXT with the spaces of NAME as '-'. */
-static void dump_path(char *out, size_t size, const char *name, const char *ext)
+/* Writes a workload's rays and hits to DIR/NAME.rays and DIR/NAME.hits,
+ * the spaces of NAME as '-'; an exit code. */
+static int dump_workload(const char *name, const as_ray_t *rays, const as_hit_t *hits, size_t count)
 {
-    snprintf(out, size, "%s/%s.%s", dump_dir, name, ext);
-    for (char *c = out + strlen(dump_dir) + 1; *c; ++c)
-        if (*c == ' ') *c = '-';
+    char path[4096];
+    for (int k = 0; k < 2; ++k) {
+        const int n = snprintf(path, sizeof path, "%s/%s.%s", dump_dir, name, k ? "hits" : "rays");
+        if (n < 0 || (size_t)n >= sizeof path) {
+            fprintf(stderr, "%s: error: --dump %s: path too long\n", TOOL, dump_dir);
+            return EXIT_IO;
+        }
+        for (char *c = path + strlen(dump_dir) + 1; *c; ++c)
+            if (*c == ' ') *c = '-';
+        if ((k ? as_hits_write(path, hits, count) : as_rays_write(path, rays, count)) != AS_OK) return tool_fail(TOOL);
+    }
+    return EXIT_OK;
 }
 
 static double as_now_ms_tool(void)
@@ -160,11 +170,8 @@ static int trace_one(const char *name, const as_structure_t *s, const as_ray_t *
     out->hit = 0;
     for (size_t i = 0; i < count; ++i) out->hit += hits[i].prim != AS_NO_HIT;
     if (dump_dir) {
-        char path[4096];
-        dump_path(path, sizeof path, name, "rays");
-        if (as_rays_write(path, rays, count) != AS_OK) return tool_fail(TOOL);
-        dump_path(path, sizeof path, name, "hits");
-        if (as_hits_write(path, hits, count) != AS_OK) return tool_fail(TOOL);
+        const int code = dump_workload(name, rays, hits, count);
+        if (code != EXIT_OK) return code;
     }
     out->verified = false;
     if (verify_samples) {

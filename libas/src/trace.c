@@ -15,7 +15,7 @@ void as_trace_args_default(as_trace_args_t *args)
     args->batch = 32;
     /* The double test decides exactly as the verification reference does and,
      * on the H100, traces 4-16% faster than the float one
-     * (docs/results/tuning.md, step 3). */
+     * (docs/results/tuning.md, step 4). */
     args->intersector = AS_INTERSECTOR_WATERTIGHT_DOUBLE;
 }
 

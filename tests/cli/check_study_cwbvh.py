@@ -22,23 +22,12 @@ import csv
 import json
 import os
 import shutil
-import subprocess
 import sys
 
-FAILS = []
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from check_study_merge import FAILS, check, run  # noqa: E402  (the same checks and tool runner)
+
 CWBVH = ["CWBVH (SAH)", "CWBVH (SBVH)"]
-
-
-def check(ok, what):
-    print(("ok - " if ok else "FAIL - ") + what)
-    if not ok:
-        FAILS.append(what)
-    return ok
-
-
-def run(cmd):
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
-    return p.returncode, p.stdout, p.stderr
 
 
 def table(folder):
