@@ -6,8 +6,8 @@
 #   scripts/study_sanmiguel.sh --merge [--out DIR]
 #   scripts/study_sanmiguel.sh --list
 #
-# All eleven variants take longer than one command may run on the GPU host
-# (10 minutes), so each PART (1 to 4) studies a few of them into
+# All thirteen variants take longer than one command may run on the GPU host
+# (10 minutes), so each PART (1 to 5) studies a few of them into
 # OUT/part-PART/, one call per part, and --merge puts the parts together into
 # OUT/merged/sanmiguel/ with `as-study --merge`, as one run would have
 # written it. The parts are sized from the bench of San Miguel on the H100
@@ -43,6 +43,7 @@ part_variants() {
         2) echo "kd-midcut-kd-standard,kd-sah-kd-standard,kd-midcut-kd-ropes,kd-sah-kd-ropes" ;;
         3) echo "bih-bih-bih,grid-grid-grid" ;;
         4) echo "octree-octree-octree" ;;
+        5) echo "bvh-sah-cwbvh,bvh-sbvh-cwbvh" ;;
         *,* | *-*) echo "$1" ;;
         *) return 1 ;;
     esac
@@ -71,7 +72,7 @@ done
 STUDY="$ROOT/tools/as-study"
 
 if [ "$MODE" = list ]; then
-    for p in 1 2 3 4; do echo "part $p: $(part_variants $p)"; done
+    for p in 1 2 3 4 5; do echo "part $p: $(part_variants $p)"; done
     exit 0
 fi
 
@@ -87,11 +88,11 @@ if [ "$MODE" = merge ]; then
 fi
 
 if [ -z "$BIN" ] || [ -z "$PART" ]; then usage; fi
-variants=$(part_variants "$PART") || { echo "study_sanmiguel.sh: no part '$PART' (1 to 4, or NAME,NAME...)" >&2; exit 1; }
+variants=$(part_variants "$PART") || { echo "study_sanmiguel.sh: no part '$PART' (1 to 5, or NAME,NAME...)" >&2; exit 1; }
 [ -f "$SCENE" ] || { echo "study_sanmiguel.sh: $SCENE: no such file (use --scene)" >&2; exit 2; }
 name=$(basename "$SCENE"); name=${name%%.*}
 case "$PART" in
-    [1-4]) dir="$OUT/part-$PART" ;;
+    [1-5]) dir="$OUT/part-$PART" ;;
     *) dir="$OUT/part-$(echo "$PART" | tr -c 'A-Za-z0-9\n' '_' | cut -c1-60)" ;;
 esac
 
