@@ -108,7 +108,7 @@ AS_HD double as_pick3d(int k, double x, double y, double z) { return k == 0 ? x 
  * ray by address would keep that ray in local memory for the whole trace. */
 typedef struct as_ray_exact {
     double dsx, dsy, dsz;
-    float ox, oy, oz, tmin;
+    float ox, oy, oz, tmin, tmax;
     int kx, ky, kz;
 } as_ray_exact_t;
 
@@ -116,7 +116,7 @@ AS_HD as_ray_exact_t as_ray_exact_of(const as_ray_pre_t *r)
 {
     as_ray_exact_t e;
     e.dsx = r->dsx; e.dsy = r->dsy; e.dsz = r->dsz;
-    e.ox = r->ox; e.oy = r->oy; e.oz = r->oz; e.tmin = r->tmin;
+    e.ox = r->ox; e.oy = r->oy; e.oz = r->oz; e.tmin = r->tmin; e.tmax = r->tmax;
     e.kx = r->kx; e.ky = r->ky; e.kz = r->kz;
     return e;
 }
@@ -152,16 +152,31 @@ AS_HD void as_triangle_sums_double(const as_ray_exact_t *r, as_f4_t a, as_f4_t b
 
 /* Whether t = T / det can lie in [tmin, tmax] (det != 0), decided without
  * the division: the margins are far wider than the rounding of T x (1 / det)
- * and of the products here, so no distance that the exact check after the
- * division accepts is turned away; most candidates behind the closest hit
- * so far are, at the cost of two multiplications. */
+ * and of the products here, and above tmax wider than half a float step
+ * (as_distance_accepted takes a distance that rounds to tmax), so no
+ * distance that the exact check after the division accepts is turned away;
+ * most candidates behind the closest hit so far are, at the cost of two
+ * multiplications. */
 AS_HD int as_distance_may_be_in(double T, double det, float tmin, float tmax)
 {
     const double Ts = det > 0.0 ? T : -T, ds = det > 0.0 ? det : -det;
     const double lo = AS_DMUL((double)tmin, ds), hi = AS_DMUL((double)tmax, ds);
     if (Ts < AS_DSUB(lo, AS_DADD(fabs(lo) * 0x1p-40, 0x1p-1000))) return 0;
-    if (Ts > AS_DADD(hi, AS_DADD(fabs(hi) * 0x1p-40, 0x1p-1000))) return 0; /* false for tmax = inf */
+    if (Ts > AS_DADD(hi, AS_DADD(fabs(hi) * 0x1p-23, 0x1p-1000))) return 0; /* false for tmax = inf */
     return 1;
+}
+
+/* Whether a distance t computed in double is a hit: inside the ray's own
+ * interval [tmin, tmax], exactly, and not beyond the closest hit so far,
+ * `tmax_now`, compared as the float that would be stored. That hit is held
+ * as a float rounded from its double distance, so a coincident copy of its
+ * triangle (the same distance exactly) can lie just above it in double; it
+ * must still reach the traversal's tie rule (equal distances go to the
+ * lowest source index), or the reported copy would depend on the order in
+ * which the traversal meets them. */
+AS_HD int as_distance_accepted(double t, float tmin, float tmax, float tmax_now)
+{
+    return t >= (double)tmin && t <= (double)tmax && (float)t <= tmax_now;
 }
 
 /* The exact end of the float test for a triangle the ray crosses: distance
@@ -177,7 +192,7 @@ AS_NOINLINE_HD int as_triangle_accept_double(as_ray_exact_t r, const as_f4_t *AS
     if (detd == 0.0 || !as_distance_may_be_in(T, detd, r.tmin, tmax_now)) return 0;
     const double inv = 1.0 / detd;
     const double td = T * inv, ud = Vd * inv, vd = Wd * inv;
-    if (!(td >= (double)r.tmin && td <= (double)tmax_now)) return 0;
+    if (!as_distance_accepted(td, r.tmin, r.tmax, tmax_now)) return 0;
     *t_out = (float)td; /* rounding is monotonic: still within the float interval */
     *u_out = (float)ud;
     *v_out = (float)vd;
@@ -212,7 +227,7 @@ AS_HD int as_ray_triangle_precise(const as_ray_pre_t *r, as_f4_t a, as_f4_t b, a
     const double T = AS_DADD(AS_DADD(AS_DMUL(U, AS_DMUL(r->dsz, A_z)), AS_DMUL(V, AS_DMUL(r->dsz, B_z))),
                              AS_DMUL(W, AS_DMUL(r->dsz, C_z)));
     const double t = T / det;
-    if (!(t >= (double)r->tmin && t <= (double)tmax_now)) return 0;
+    if (!as_distance_accepted(t, r->tmin, r->tmax, tmax_now)) return 0;
     *t_out = (float)t; /* rounding is monotonic: still within the float interval */
     *u_out = (float)(V / det);
     *v_out = (float)(W / det);
