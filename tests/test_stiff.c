@@ -11,18 +11,11 @@
  * without a usable GPU); builds and the reference stay on the CPU.
  * Cases: watertight, moller_leaks, seam, signed_zero, grazing, range,
  * degenerate, flat, duplicates, planar, surface, bad_rays. */
-#include "reference.h"
-#include "test_util.h"
+#include "stiff_harness.h"
 
 #include <float.h>
 #include <stdio.h>
 #include <time.h>
-
-static as_build_args_t variant;
-static char variant_name[128];
-static as_intersector_t intersector;         /* what trace() uses */
-static as_intersector_t default_intersector; /* the library's default, set in main */
-static as_device_t device = AS_DEVICE_CPU;
 
 /* ---- helpers -------------------------------------------------------------- */
 
@@ -40,81 +33,7 @@ static int generate(as_stiff_case_t kind, const as_stiff_args_t *args, as_stiff_
  * reference part aside (against_reference checks that). */
 static size_t outcome_failures(const as_stiff_case_data_t *c, size_t from, size_t to, const as_hit_t *hits)
 {
-    size_t bad = 0;
-    for (size_t i = from; i < to; ++i) {
-        const as_stiff_outcome_t *o = &c->outcomes[i];
-        const as_hit_t *h = &hits[i - from];
-        bool listed = false;
-        for (uint32_t k = 0; k < o->count; ++k) listed |= h->prim == c->prims[o->first + k];
-        bool ok = true;
-        switch (o->expect) {
-        case AS_STIFF_EXPECT_HIT: ok = h->prim != AS_NO_HIT; break;
-        case AS_STIFF_EXPECT_MISS: ok = h->prim == AS_NO_HIT && isinf(h->t); break;
-        case AS_STIFF_EXPECT_PRIM: ok = listed; break;
-        case AS_STIFF_EXPECT_NOT_PRIM: ok = !listed; break;
-        default: break;
-        }
-        if (o->same_as != AS_STIFF_NO_RAY && o->same_as >= from)
-            ok = ok && memcmp(h, &hits[o->same_as - from], sizeof *h) == 0;
-        if (!ok && bad < 3)
-            fprintf(stderr, "  %s %s ray %zu: outcome %u not met: prim %u t %.9g\n", variant_name,
-                    as_stiff_case_name(c->kind), i, o->expect, h->prim, (double)h->t);
-        bad += !ok;
-    }
-    return bad;
-}
-
-static as_structure_t *build(const as_mesh_t *m, const char *what)
-{
-    as_structure_t *s = as_structure_build(m, &variant);
-    if (!s) fprintf(stderr, "  %s %s: build failed: %s\n", variant_name, what, as_get_error_message());
-    CHECK(s != NULL);
-    if (s) CHECK_EQ_INT(as_structure_validate(s), AS_OK);
-    return s;
-}
-
-static as_hit_t *trace(const as_structure_t *s, const as_ray_t *rays, size_t n, int any_hit, double *ms)
-{
-    as_trace_args_t ta;
-    as_trace_args_default(&ta);
-    ta.device = device;
-    ta.any_hit = any_hit;
-    ta.thread_count = 1; /* timings below compare rays, not cores */
-    ta.timed_runs = 3;   /* GPU: the median of three launches */
-    ta.intersector = intersector;
-    as_hit_t *hits = malloc(sizeof *hits * (n ? n : 1));
-    as_trace_timing_t t;
-    const as_error_t e = as_trace(s, rays, n, hits, &ta, &t);
-    CHECK_EQ_INT(e, AS_OK);
-    if (ms) *ms = t.trace_ms;
-    return hits;
-}
-
-/* Closest hits against the reference; returns the disagreements. */
-static size_t against_reference(const char *what, const as_mesh_t *m, const as_structure_t *s, const as_ray_t *rays,
-                                size_t n)
-{
-    ref_scene rs;
-    CHECK(ref_scene_init(&rs, m));
-    ref_hit *ref = malloc(sizeof *ref * (n ? n : 1));
-    ref_trace_all(&rs, rays, n, ref);
-    as_hit_t *hits = trace(s, rays, n, 0, NULL);
-    size_t bad = 0, nan = 0;
-    for (size_t i = 0; i < n; ++i) {
-        nan += isnan(hits[i].t) || isnan(hits[i].u) || isnan(hits[i].v);
-        if (!ref_agrees(&rs, &rays[i], &ref[i], &hits[i])) {
-            if (bad < 3)
-                fprintf(stderr, "  %s %s ray %zu: reference prim %u t %.9g, traversal prim %u t %.9g\n", variant_name, what,
-                        i, ref[i].prim, ref[i].t, hits[i].prim, (double)hits[i].t);
-            ++bad;
-        }
-    }
-    fprintf(stderr, "  %s %s: %zu rays, %zu disagree with the reference, %zu NaN\n", variant_name, what, n, bad, nan);
-    CHECK_EQ_U64(nan, 0);
-    free(hits);
-    free(ref);
-    ref_scene_free(&rs);
-    return bad;
+    return stiff_outcome_failures(as_stiff_case_name(c->kind), c->outcomes, c->prims, from, to, hits);
 }
 
 /* ---- the cases ------------------------------------------------------------ */
@@ -616,32 +535,12 @@ int main(int argc, char **argv)
         RUN_TEST(generator_gives_other_meshes_for_another_seed);
         TEST_EXIT();
     }
-    if (argc > 1 && strcmp(argv[1], "--gpu") == 0) {
-        device = AS_DEVICE_GPU;
-        --argc;
-        ++argv;
-        if (!as_gpu_available()) {
-            fprintf(stderr, "no usable CUDA device: skipped\n");
-            return 77;
-        }
+    const char *only = NULL;
+    const int rc = stiff_parse_variant(argc, argv, "test_stiff", &only);
+    if (rc) {
+        if (rc == 2) fprintf(stderr, "       test_stiff --generator\n");
+        return rc;
     }
-    if (argc < 4) {
-        fprintf(stderr, "usage: test_stiff [--gpu] STRUCTURE BUILDER LAYOUT [CASE]\n       test_stiff --generator\n");
-        return 2;
-    }
-    as_trace_args_t defaults;
-    as_trace_args_default(&defaults);
-    intersector = default_intersector = defaults.intersector;
-    as_build_args_default(&variant);
-    variant.structure = as_structure_kind_from_name(argv[1]);
-    variant.builder = as_builder_from_name(variant.structure, argv[2]);
-    variant.layout = as_layout_from_name(argv[3]);
-    if (!variant.structure || !variant.builder || !variant.layout) {
-        fprintf(stderr, "unknown variant %s/%s/%s\n", argv[1], argv[2], argv[3]);
-        return 2;
-    }
-    snprintf(variant_name, sizeof variant_name, "%s/%s/%s", argv[1], argv[2], argv[3]);
-    const char *only = argc > 4 ? argv[4] : NULL;
 #define CASE(name, fn) if (!only || strcmp(only, name) == 0) RUN_TEST(fn)
     CASE("watertight", watertight_meshes_have_zero_leaks_far_from_the_origin);
     CASE("watertight_float", float_watertight_test_has_zero_leaks_too);
