@@ -887,8 +887,8 @@ static void signed_zero_on_the_structures_own_planes(void)
 /* An icosphere (4 subdivisions) and a 64-sided capped cylinder, rays
  * tangent to them at vertices (touching the vertex, in float within a
  * step of it) and at 1e-2 down to 1e-6 radians into the surface at
- * vertices and face centres, and rays along the cylinder's side through
- * its vertical edges and face centres. Outcome: the reference's answer. */
+ * vertices and face centres, and rays parallel to the cylinder's axis
+ * along its vertical edges. Outcome: the reference's answer. */
 static void grazing_rays_on_curved_meshes_match_the_reference(void)
 {
     scene_t sc = {0};
