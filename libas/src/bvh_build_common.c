@@ -867,6 +867,10 @@ typedef struct inplace_ctx {
 static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, const inplace_task *t)
 {
     bvh_builder *b = ctx->b;
+    if (t->range.count <= b->exact_max && !atomic_load_explicit(&b->cancelled, memory_order_relaxed)) {
+        bvh_build_exact_subtree(b, loc, t->node, &t->range, t->depth);
+        return;
+    }
     b->nodes[t->node].box = t->range.box;
     bvh_range l, r;
     int32_t ln, rn;

@@ -65,6 +65,7 @@ typedef struct bvh_builder {
     uint32_t depth_limit;     /* a node at depth + 1 >= depth_limit is a leaf */
     atomic_uint_fast64_t inner_count;  /* splits, summed by bvh_local_flush */
     atomic_uint tasks_shared;          /* bvh_share_task's pushes */
+    uint32_t exact_max;       /* in-place builders: subtrees up to this size go to bvh_build_exact_subtree; 0: none */
 } bvh_builder;
 
 /* Tmp nodes are taken from the shared array in chunks of this many per
@@ -276,8 +277,17 @@ uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bv
  * with their bounds), returning 1, or returns 0 to make a leaf. It is called
  * only for count >= 2 below the depth cap. */
 typedef int (*bvh_split_fn)(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right);
-/* Builds the whole tree over b->refs with `split` on every build thread;
- * returns the root. */
+/* Builds the subtree of at most BVH_EXACT_MAX references of range r under
+ * `node` (at `depth`) by the exact SAH sweep, with the binned builder's leaf
+ * rule: a split where it costs less than a leaf or the node holds more than
+ * max_leaf_size references, halving where every centroid coincides, a leaf
+ * at the depth cap. Reorders r's references into the leaves' order. */
+#define BVH_EXACT_MAX 32
+void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, const bvh_range *r, uint32_t depth);
+
+/* Builds the whole tree over b->refs with `split` on every build thread
+ * (and bvh_build_exact_subtree below b->exact_max references); returns the
+ * root. */
 int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split);
 
 /* Writes the tmp tree under `root` into `s` (META, BVH2 or BVHO, TRI4) in the
