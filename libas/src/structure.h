@@ -55,7 +55,8 @@ void as_structure_add_section(as_structure_t *s, uint32_t tag, void *data, uint6
 struct as_tri4;
 const struct as_tri4 **as_structure_triangles_by_prim(const as_structure_t *s);
 
-/* 64-byte aligned allocation for section data; free with free(). */
+/* 64-byte aligned allocation for section data (from 4 MB: 2 MB aligned and
+ * marked for transparent huge pages); free with free(). */
 void *as_aligned_alloc(size_t bytes, const char *what);
 
 /* What libas knows of one stored layout: its sections, and how to validate,
