@@ -47,3 +47,9 @@ add_test(NAME tools_as_study_cwbvh_rows
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_study_cwbvh.py $<TARGET_FILE_DIR:as-build>
           ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/as-study-cwbvh-out)
 set_tests_properties(tools_as_study_cwbvh_rows PROPERTIES LABELS tools TIMEOUT 300)
+# --check: a committed study run again with its recorded settings agrees;
+# a figure changed by hand is found; another scene is refused.
+add_test(NAME tools_as_study_check
+  COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_study_check.py $<TARGET_FILE_DIR:as-build>
+          ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/as-study-check-out)
+set_tests_properties(tools_as_study_check PROPERTIES LABELS tools TIMEOUT 300)
