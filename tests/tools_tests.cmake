@@ -53,3 +53,8 @@ add_test(NAME tools_as_study_check
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_study_check.py $<TARGET_FILE_DIR:as-build>
           ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/as-study-check-out)
 set_tests_properties(tools_as_study_check PROPERTIES LABELS tools TIMEOUT 300)
+# scripts/ceiling.py: node visits per second against the H100's ceilings, on
+# a study folder whose figures are known.
+add_test(NAME tools_ceiling_table
+  COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_ceiling.py ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/ceiling-out)
+set_tests_properties(tools_ceiling_table PROPERTIES LABELS tools)
