@@ -209,7 +209,7 @@ def main():
     check(not os.path.exists(os.path.join(out, "bunny")), "no run started for a usage or I/O error")
 
     if mode == "accuracy":
-        variants = ["BVH (SAH)", "Uniform Grid"]
+        variants = ["BVH (SAH)", "Uniform Grid", "CWBVH (SBVH)"]
         workloads = ["primary", "shadow", "ao", "diffuse"]
         code, _, err = run(common + [scene, "--verify", "5000", "--variants", ",".join(variants)])
         if check(code == 0, "as-accuracy exits 0 (%s)" % (err.strip().splitlines() or [""])[-1]):
