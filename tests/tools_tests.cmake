@@ -53,6 +53,12 @@ add_test(NAME tools_as_study_check
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_study_check.py $<TARGET_FILE_DIR:as-build>
           ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/as-study-check-out)
 set_tests_properties(tools_as_study_check PROPERTIES LABELS tools TIMEOUT 300)
+# All thirteen variants on a scene made by the test (not one of ../shared/scenes
+# nor the bunny): every output, 0 mismatches, and --check of what it wrote.
+add_test(NAME tools_as_study_other_scene
+  COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_study_other_scene.py $<TARGET_FILE_DIR:as-build>
+          ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/as-study-other-out)
+set_tests_properties(tools_as_study_other_scene PROPERTIES LABELS tools TIMEOUT 300)
 # scripts/ceiling.py: node visits per second against the H100's ceilings, on
 # a study folder whose figures are known.
 add_test(NAME tools_ceiling_table
