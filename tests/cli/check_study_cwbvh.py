@@ -14,7 +14,7 @@ ours, beyond the paper's ten variants and out of the comparison with its
 ranking. --merge must put a part with these rows together with a merged
 folder made before them (BVH (SAH) and BIH), in the study's order, and keep
 a row of a name it does not know rather than drop it; a merged folder of
-the H100 study (docs/study/h100/sanmiguel, written before these rows) must
+the H100 study (docs/study/h100/sanmiguel, merged from its parts) must
 merge again into the same table. Prints one line per check; exits 0 when
 all pass, 1 otherwise.
 """
