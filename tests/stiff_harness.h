@@ -40,15 +40,7 @@ static int stiff_parse_variant(int argc, char **argv, const char *program, const
     as_trace_args_t defaults;
     as_trace_args_default(&defaults);
     intersector = default_intersector = defaults.intersector;
-    as_build_args_default(&variant);
-    variant.structure = as_structure_kind_from_name(argv[1]);
-    variant.builder = as_builder_from_name(variant.structure, argv[2]);
-    variant.layout = as_layout_from_name(argv[3]);
-    if (!variant.structure || !variant.builder || !variant.layout) {
-        fprintf(stderr, "unknown variant %s/%s/%s\n", argv[1], argv[2], argv[3]);
-        return 2;
-    }
-    snprintf(variant_name, sizeof variant_name, "%s/%s/%s", argv[1], argv[2], argv[3]);
+    if (test_parse_variant(argv + 1, &variant, variant_name, sizeof variant_name)) return 2;
     *only = argc > 4 ? argv[4] : NULL;
     return 0;
 }

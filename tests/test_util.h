@@ -65,6 +65,23 @@ static inline as_error_t test_save_reproducible(const as_structure_t *s, const c
     return as_structure_save(s, path, &args);
 }
 
+/* The variant named by STRUCTURE BUILDER LAYOUT on a test's command line,
+ * into `variant` (defaults otherwise) and "S/B/L" into `name`; 0, or 2
+ * (the usage status) with a message when one of the three is unknown. */
+static inline int test_parse_variant(char *const words[3], as_build_args_t *variant, char *name, size_t len)
+{
+    as_build_args_default(variant);
+    variant->structure = as_structure_kind_from_name(words[0]);
+    variant->builder = as_builder_from_name(variant->structure, words[1]);
+    variant->layout = as_layout_from_name(words[2]);
+    if (!variant->structure || !variant->builder || !variant->layout) {
+        fprintf(stderr, "unknown variant %s/%s/%s\n", words[0], words[1], words[2]);
+        return 2;
+    }
+    snprintf(name, len, "%s/%s/%s", words[0], words[1], words[2]);
+    return 0;
+}
+
 static inline const char *test_scene_or_exit(const char *name, char *buf, size_t len)
 {
 #ifdef AS_SCENES_DIR

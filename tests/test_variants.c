@@ -288,15 +288,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "usage: %s STRUCTURE BUILDER LAYOUT [scene NAME RAYS]\n", argv[0]);
         return 2;
     }
-    as_build_args_default(&variant);
-    variant.structure = as_structure_kind_from_name(argv[1]);
-    variant.builder = as_builder_from_name(variant.structure, argv[2]);
-    variant.layout = as_layout_from_name(argv[3]);
-    if (!variant.structure || !variant.builder || !variant.layout) {
-        fprintf(stderr, "unknown variant %s/%s/%s\n", argv[1], argv[2], argv[3]);
-        return 2;
-    }
-    snprintf(variant_name, sizeof variant_name, "%s/%s/%s", argv[1], argv[2], argv[3]);
+    if (test_parse_variant(argv + 1, &variant, variant_name, sizeof variant_name)) return 2;
     snprintf(tmpdir, sizeof tmpdir, "/tmp/as_test_variants_XXXXXX");
     if (!mkdtemp(tmpdir)) return 1;
     if (argc >= 7 && strcmp(argv[4], "scene") == 0) {

@@ -21,15 +21,11 @@ import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from check_study_merge import FAILS, check, run  # noqa: E402  (the same checks and tool runner)
+from check_study_merge import FAILS, check, run, setup  # noqa: E402  (the same checks and tool runner)
 
 
 def main():
-    tool_dir, src, work = sys.argv[1:4]
-    study = [sys.executable, os.path.join(src, "tools", "as-study")]
-    bunny = os.path.join(src, "scenes", "bunny.drc")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    tool_dir, src, work, study, bunny = setup(sys.argv)
     cams = os.path.join(work, "cams")
     os.makedirs(cams)
     with open(os.path.join(cams, "bunny.cam"), "w") as f:

@@ -21,11 +21,10 @@ all pass, 1 otherwise.
 import csv
 import json
 import os
-import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from check_study_merge import FAILS, check, run  # noqa: E402  (the same checks and tool runner)
+from check_study_merge import FAILS, check, run, setup  # noqa: E402  (the same checks and tool runner)
 
 CWBVH = ["CWBVH (SAH)", "CWBVH (SBVH)"]
 
@@ -37,11 +36,7 @@ def table(folder):
 
 
 def main():
-    tool_dir, src, work = sys.argv[1:4]
-    study = [sys.executable, os.path.join(src, "tools", "as-study")]
-    bunny = os.path.join(src, "scenes", "bunny.drc")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    tool_dir, src, work, study, bunny = setup(sys.argv)
     small = ["--bin", tool_dir, "--device", "cpu", "--width", "64", "--height", "48", "--verify", "500",
              "--cameras", os.path.join(work, "no-cameras")]
 

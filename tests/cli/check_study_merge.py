@@ -58,12 +58,18 @@ def md_variants(folder):
     return names
 
 
-def main():
-    tool_dir, src, work = sys.argv[1:4]
-    study = [sys.executable, os.path.join(src, "tools", "as-study")]
-    bunny = os.path.join(src, "scenes", "bunny.drc")
+def setup(argv):
+    """(TOOL_DIR, SOURCE_DIR, a fresh WORK_DIR, the as-study command, the
+    bundled bunny) from the arguments every as-study check takes."""
+    tool_dir, src, work = argv[1:4]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
+    return (tool_dir, src, work, [sys.executable, os.path.join(src, "tools", "as-study")],
+            os.path.join(src, "scenes", "bunny.drc"))
+
+
+def main():
+    tool_dir, src, work, study, bunny = setup(sys.argv)
     no_cameras = os.path.join(work, "no-cameras")
 
     def small(width=64, cameras=no_cameras):

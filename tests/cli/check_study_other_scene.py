@@ -16,12 +16,11 @@ import csv
 import json
 import math
 import os
-import shutil
 import sys
 import tarfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from check_study_merge import FAILS, check, run  # noqa: E402  (the same checks and tool runner)
+from check_study_merge import FAILS, check, run, setup  # noqa: E402  (the same checks and tool runner)
 
 
 def write_scene(path):
@@ -81,10 +80,7 @@ def write_scene(path):
 
 
 def main():
-    tool_dir, src, work = sys.argv[1:4]
-    study = [sys.executable, os.path.join(src, "tools", "as-study")]
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
+    tool_dir, src, work, study, _ = setup(sys.argv)
     scene = os.path.join(work, "hills.obj")
     triangles = write_scene(scene)
     out = os.path.join(work, "study")
