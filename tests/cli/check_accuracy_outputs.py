@@ -198,6 +198,9 @@ def main():
     scene = os.path.join(src, "scenes", "bunny.drc")
     out = os.path.join(work, mode)
     shutil.rmtree(out, ignore_errors=True)
+    # Each mode writes only under WORK_DIR/MODE, so the two may run at once;
+    # WORK_DIR itself may not exist yet in a fresh build tree.
+    os.makedirs(work, exist_ok=True)
     common = [tool, "--bin", tool_dir, "--device", "cpu", "--width", "64", "--height", "48", "--out", out]
 
     code, _, err = run(common + [scene, "--intersectors", "watertight,no-such-test"])
@@ -221,7 +224,7 @@ def main():
     else:
         builders = ["bvh-sah", "grid"]
         # The sweep also takes the camera from a file, as SCENE@FILE.
-        cam = os.path.join(work, "bunny.cam")
+        cam = os.path.join(work, "build-sweep-bunny.cam")
         with open(cam, "w") as f:
             f.write("eye -0.0168405 0.110152 0.325428\ntarget -0.0168405 0.110152 -0.00153505\nup 0 1 0\nfov 45\n")
         scene = scene + "@" + cam
