@@ -74,12 +74,8 @@ static void build_is_byte_identical_whatever_the_thread_count(void)
     uint64_t st = 7;
     const uint32_t n = 200000;
     float *p = malloc(sizeof(float) * 9 * n);
-    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
     for (uint32_t i = 0; i < 9 * n; ++i) p[i] = (float)ref_rand01(&st);
-    for (uint32_t i = 0; i < 3 * n; ++i) ix[i] = i;
-    meshes[1] = as_mesh_create(3 * n, p, n, ix);
-    free(p);
-    free(ix);
+    meshes[1] = test_mesh_from_soup(p, n);
     CHECK(meshes[1] != NULL);
     const unsigned threads[] = {1, 2, 3, 8};
     for (int k = 0; k < 2; ++k) {

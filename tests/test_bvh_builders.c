@@ -46,7 +46,6 @@ static as_hit_t trace1(const as_structure_t *s, const as_ray_t *ray)
 static as_mesh_t *small_triangle_soup(uint32_t n, uint64_t seed)
 {
     float *p = malloc(sizeof(float) * 9 * n);
-    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
     uint64_t st = seed;
     for (uint32_t i = 0; i < n; ++i) {
         float c[3];
@@ -54,11 +53,7 @@ static as_mesh_t *small_triangle_soup(uint32_t n, uint64_t seed)
         for (int v = 0; v < 3; ++v)
             for (int k = 0; k < 3; ++k) p[9 * i + 3 * v + k] = c[k] + 0.02f * (float)(ref_rand01(&st) - 0.5);
     }
-    for (uint32_t i = 0; i < 3 * n; ++i) ix[i] = i;
-    as_mesh_t *m = as_mesh_create(3 * n, p, n, ix);
-    free(p);
-    free(ix);
-    return m;
+    return test_mesh_from_soup(p, n);
 }
 
 /* Builds `m` with each of the three thread counts (the first is 1) and
@@ -110,7 +105,6 @@ static as_mesh_t *lopsided_scene(uint64_t seed)
 {
     const uint32_t dense = 40000, sparse = 3000, spanning = 8, n = dense + sparse + spanning;
     float *p = malloc(sizeof(float) * 9 * n);
-    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
     uint64_t st = seed;
     for (uint32_t i = 0; i < n; ++i) {
         float c[3], size;
@@ -128,11 +122,7 @@ static as_mesh_t *lopsided_scene(uint64_t seed)
         for (int v = 0; v < 3; ++v)
             for (int k = 0; k < 3; ++k) p[9 * i + 3 * v + k] = c[k] + size * (float)(ref_rand01(&st) - 0.5);
     }
-    for (uint32_t i = 0; i < 3 * n; ++i) ix[i] = i;
-    as_mesh_t *m = as_mesh_create(3 * n, p, n, ix);
-    free(p);
-    free(ix);
-    return m;
+    return test_mesh_from_soup(p, n);
 }
 
 /* The output walk is split among threads by subtree sizes: 7 threads cut

@@ -31,18 +31,13 @@ static as_mesh_t *soup(uint64_t seed, uint32_t n, float size)
 {
     uint64_t st = seed;
     float *p = malloc(sizeof(float) * 9 * n);
-    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
     for (uint32_t t = 0; t < n; ++t) {
         float c[3];
         for (int k = 0; k < 3; ++k) c[k] = (float)ref_rand01(&st);
         for (int v = 0; v < 3; ++v)
             for (int k = 0; k < 3; ++k) p[9 * t + 3 * v + k] = c[k] + size * (float)(ref_rand01(&st) - 0.5);
     }
-    for (uint32_t i = 0; i < 3 * n; ++i) ix[i] = i;
-    as_mesh_t *m = as_mesh_create(3 * n, p, n, ix);
-    free(p);
-    free(ix);
-    return m;
+    return test_mesh_from_soup(p, n);
 }
 
 static void save(const as_structure_t *s, const char *path)

@@ -65,6 +65,18 @@ static inline as_error_t test_save_reproducible(const as_structure_t *s, const c
     return as_structure_save(s, path, &args);
 }
 
+/* An unindexed mesh of n triangles from the 9 n floats at p (triangle t's
+ * corners at p[9 t], p[9 t + 3], p[9 t + 6]); frees p. */
+static inline as_mesh_t *test_mesh_from_soup(float *p, uint32_t n)
+{
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
+    for (uint32_t i = 0; i < 3 * n; ++i) ix[i] = i;
+    as_mesh_t *m = as_mesh_create(3 * n, p, n, ix);
+    free(p);
+    free(ix);
+    return m;
+}
+
 /* The variant named by STRUCTURE BUILDER LAYOUT on a test's command line,
  * into `variant` (defaults otherwise) and "S/B/L" into `name`; 0, or 2
  * (the usage status) with a message when one of the three is unknown. */
