@@ -531,6 +531,13 @@ int bvh_share_task(bvh_builder *b, as_task_pool *pool, const void *task)
     return as_task_pool_push(pool, task);
 }
 
+void bvh_pending_offer(bvh_builder *b, as_task_pool *pool, bvh_pending_stack *s)
+{
+    if (s->next == s->n || !pool || !as_task_pool_hungry(pool)) return;
+    bvh_pending *p = s->e[s->next++];
+    p->given = bvh_share_task(b, pool, p->task);
+}
+
 
 uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
 {
@@ -860,13 +867,15 @@ typedef struct inplace_ctx {
     bvh_split_fn split;
 } inplace_ctx;
 
-/* Builds the subtree of task t, handing the right child to an idle thread
- * when it is big enough to be worth it, and records the subtree's size
- * once both children are done (the recursion is no deeper than the depth
- * cap). */
-static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, const inplace_task *t)
+/* Builds the subtree of task t, handing its oldest large right child not
+ * yet started to a thread that waits for work (bvh_pending_offer), and
+ * records the subtree's size once both children are done (the recursion is
+ * no deeper than the depth cap). */
+static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, bvh_pending_stack *pend,
+                            const inplace_task *t)
 {
     bvh_builder *b = ctx->b;
+    bvh_pending_offer(b, pool, pend);
     if (t->range.count <= b->exact_max && !atomic_load_explicit(&b->cancelled, memory_order_relaxed)) {
         bvh_build_exact_subtree(b, loc, t->node, &t->range, t->depth);
         return;
@@ -883,10 +892,12 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
     }
     bvh_make_inner(b, t->node, ln, rn);
     const inplace_task lt = {l, ln, t->depth + 1}, rt = {r, rn, t->depth + 1};
-    const int shared = rt.range.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt);
-    inplace_subtree(pool, ctx, loc, &lt);
-    if (!shared) inplace_subtree(pool, ctx, loc, &rt);
-    bvh_node_complete(b, t->node, shared);
+    bvh_pending rp = {&rt, 0};
+    const int tracked = pool && rt.range.count >= BVH_PARALLEL_MIN_PRIMS && bvh_pending_push(pend, &rp);
+    inplace_subtree(pool, ctx, loc, pend, &lt);
+    if (tracked) bvh_pending_pop(pend);
+    if (!rp.given) inplace_subtree(pool, ctx, loc, pend, &rt);
+    bvh_node_complete(b, t->node, rp.given);
 }
 
 static void inplace_run(as_task_pool *pool, void *task, void *user)
@@ -896,7 +907,9 @@ static void inplace_run(as_task_pool *pool, void *task, void *user)
     memcpy(&t, task, sizeof t);
     bvh_local loc;
     bvh_local_init(&loc, ctx->b);
-    inplace_subtree(pool, ctx, &loc, &t);
+    bvh_pending_stack pend;
+    bvh_pending_init(&pend);
+    inplace_subtree(pool, ctx, &loc, &pend, &t);
     bvh_local_flush(&loc);
 }
 

@@ -637,10 +637,6 @@ static int sbvh_split(sbvh_ctx *ctx, sbvh_mem *m, const bvh_box *node_box, bvh_r
     return ok;
 }
 
-/* Builds the subtree of task t, handing the right child to an idle thread
- * when it is big enough to be worth it, and records the subtree's size
- * once both children are done (the recursion is no deeper than the depth
- * cap). */
 /* Makes node a leaf of the task's references, copied into the store; the
  * task's array is given back (an arena one by whoever took it). */
 static void sbvh_leaf(bvh_local *loc, sbvh_mem *m, const sbvh_task *t)
@@ -660,13 +656,15 @@ static void sbvh_leaf(bvh_local *loc, sbvh_mem *m, const sbvh_task *t)
     bvh_local_leaf(loc, t->node, stored, count);
 }
 
-/* Builds the subtree of task t, handing the right child to an idle thread
- * when it is big enough to be worth it, and records the subtree's size
- * once both children are done (the recursion is no deeper than the depth
- * cap). */
-static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, const sbvh_task *t)
+/* Builds the subtree of task t, handing its oldest large right child not
+ * yet started (one with malloc'd references, which pass to the task that
+ * takes it) to a thread that waits for work (bvh_pending_offer), and
+ * records the subtree's size once both children are done (the recursion is
+ * no deeper than the depth cap). */
+static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pending_stack *pend, const sbvh_task *t)
 {
     bvh_builder *b = t->ctx->b;
+    bvh_pending_offer(b, pool, pend);
     sides sd = {NULL, NULL, 0, 0, 0, 0};
     int32_t l, r;
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->count <= 1 || t->depth + 1 >= b->depth_limit ||
@@ -694,11 +692,13 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, const 
      * here once both subtrees are done. */
     const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, sd.owned, lbudget, t->depth + 1};
     const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, sd.owned, rbudget, t->depth + 1};
-    const int shared = sd.owned && rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_share_task(b, pool, &rt);
-    sbvh_subtree(pool, loc, m, &lt);
-    if (!shared) sbvh_subtree(pool, loc, m, &rt);
+    bvh_pending rp = {&rt, 0};
+    const int tracked = pool && sd.owned && rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_pending_push(pend, &rp);
+    sbvh_subtree(pool, loc, m, pend, &lt);
+    if (tracked) bvh_pending_pop(pend);
+    if (!rp.given) sbvh_subtree(pool, loc, m, pend, &rt);
     if (!sd.owned) m->arena_top = sd.arena_mark;
-    bvh_node_complete(b, t->node, shared);
+    bvh_node_complete(b, t->node, rp.given);
 }
 
 static void sbvh_run(as_task_pool *pool, void *task, void *user)
@@ -709,7 +709,9 @@ static void sbvh_run(as_task_pool *pool, void *task, void *user)
     bvh_local loc;
     bvh_local_init(&loc, t.ctx->b);
     sbvh_mem *m = mem_acquire(t.ctx);
-    sbvh_subtree(pool, &loc, m, &t);
+    bvh_pending_stack pend;
+    bvh_pending_init(&pend);
+    sbvh_subtree(pool, &loc, m, &pend, &t);
     mem_release(t.ctx, m);
     bvh_local_flush(&loc);
 }

@@ -15,6 +15,7 @@ struct as_task_pool {
     size_t depth, capacity;
     size_t active;          /* tasks queued or running */
     atomic_int waiting;     /* threads asleep on `wake` */
+    atomic_int queued;      /* depth, readable without the lock */
     as_task_fn run;
     void *user;
 };
@@ -34,13 +35,20 @@ int as_task_pool_push(as_task_pool *p, const void *task)
     }
     memcpy(p->stack + p->depth * p->task_size, task, p->task_size);
     p->depth++;
+    atomic_store_explicit(&p->queued, (int)p->depth, memory_order_relaxed);
     p->active++;
     pthread_cond_signal(&p->wake);
     pthread_mutex_unlock(&p->lock);
     return 1;
 }
 
-int as_task_pool_hungry(as_task_pool *p) { return atomic_load_explicit(&p->waiting, memory_order_relaxed) > 0; }
+/* A thread woken for a task still counts as waiting until it has taken
+ * it: a thread is hungry only while the waiting outnumber the queued. */
+int as_task_pool_hungry(as_task_pool *p)
+{
+    return atomic_load_explicit(&p->waiting, memory_order_relaxed) >
+           atomic_load_explicit(&p->queued, memory_order_relaxed);
+}
 
 static void *worker(void *arg)
 {
@@ -55,6 +63,7 @@ static void *worker(void *arg)
         }
         if (p->depth == 0) break; /* nothing queued, nothing running: done */
         p->depth--;
+        atomic_store_explicit(&p->queued, (int)p->depth, memory_order_relaxed);
         memcpy(task, p->stack + p->depth * p->task_size, p->task_size);
         pthread_mutex_unlock(&p->lock);
         p->run(p, task, p->user);
@@ -74,6 +83,7 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
     p.run = run;
     p.user = user;
     atomic_init(&p.waiting, 0);
+    atomic_init(&p.queued, 0);
     if (pthread_mutex_init(&p.lock, NULL) != 0) return 0;
     if (pthread_cond_init(&p.wake, NULL) != 0) {
         pthread_mutex_destroy(&p.lock);

@@ -26,7 +26,8 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
  * memory), in which case the caller runs it itself. */
 int as_task_pool_push(as_task_pool *pool, const void *task);
 
-/* Whether a thread is waiting for work: a hint for when to push. */
+/* Whether more threads wait for work than tasks are queued for them: a
+ * hint for when to push, read without the lock. */
 int as_task_pool_hungry(as_task_pool *pool);
 
 /* Runs fn(user, i, n) for i in [0, n) on n threads (the caller's included)
