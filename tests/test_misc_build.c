@@ -4,7 +4,7 @@
  *
  * byte-identical files for 1, 2 and 3 threads; cancellation; 10,000 copies
  * of one triangle (depth within the cap, nodes linear in N, the lowest index
- * hit); a flat scene hit from both sides; quads lying exactly on split
+ * hit); a small dense cluster in a large scene subdivided; a flat scene hit from both sides; quads lying exactly on split
  * planes and cell walls; zero-area triangles left out; the reference budget;
  * validation rejecting damaged files. */
 #include "reference.h"
@@ -176,6 +176,56 @@ static void copies_of_one_triangle_stay_shallow_and_hit_the_lowest_index(void)
         as_structure_release(s);
         as_mesh_release(m);
     }
+}
+
+/* 2,000 small triangles in the unit cube at one corner of a scene 100 wide
+ * (one more triangle at the far corner): the structure must still separate
+ * them. In the octree, the cell around the cluster at level 1 holds it all
+ * in one child; splitting it costs no reference and must go on, so no leaf
+ * keeps 64 or more of them; BIH likewise. A uniform grid cannot adapt (its
+ * cells are sized for the whole scene: the teapot in a stadium), so for it
+ * only the answers are checked. Rays from around the cluster agree with the
+ * reference. */
+static void a_small_dense_cluster_in_a_large_scene_is_subdivided(void)
+{
+    uint64_t st = 11;
+    const uint32_t n = 2001;
+    float *p = malloc(sizeof(float) * 9 * n);
+    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
+    for (uint32_t t = 0; t < n; ++t) {
+        float c[3];
+        for (int k = 0; k < 3; ++k) c[k] = t + 1 < n ? (float)ref_rand01(&st) : 99.5f;
+        for (int v = 0; v < 9; ++v) p[9 * t + v] = c[v % 3] + 0.02f * (float)(ref_rand01(&st) - 0.5);
+        for (int v = 0; v < 3; ++v) ix[3 * t + v] = 3 * t + v;
+    }
+    as_mesh_t *m = as_mesh_create(3 * n, p, n, ix);
+    free(p);
+    free(ix);
+    as_build_args_t args;
+    args_for(&args);
+    as_structure_t *s = as_structure_build(m, &args);
+    CHECK(s != NULL);
+    if (s) {
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+        as_structure_stats_t sst;
+        CHECK_EQ_INT(as_structure_get_stats(s, &sst), AS_OK);
+        if (kind != AS_STRUCT_GRID) {
+            CHECK_EQ_U64(sst.leaf_size_histogram[AS_HISTOGRAM_BINS - 1], 0);
+            CHECK(sst.average_leaf_size < 16.0);
+        }
+        /* Rays from random points around the cluster in random directions. */
+        as_ray_t *rays = malloc(sizeof *rays * 4000);
+        for (size_t i = 0; i < 4000; ++i) {
+            for (int k = 0; k < 3; ++k) rays[i].org[k] = (float)(3.0 * ref_rand01(&st) - 1.0);
+            ref_random_direction(&st, rays[i].dir);
+            rays[i].tmin = 0.0f;
+            rays[i].tmax = INFINITY;
+        }
+        CHECK_EQ_U64(disagreements(m, s, rays, 4000), 0);
+        free(rays);
+    }
+    as_structure_release(s);
+    as_mesh_release(m);
 }
 
 /* Random triangles all in the plane z = 0.5: a zero-thickness box. */
@@ -466,6 +516,7 @@ int main(int argc, char **argv)
     RUN_TEST(build_is_byte_identical_for_1_2_and_3_threads);
     RUN_TEST(progress_callback_returning_false_cancels_the_build);
     RUN_TEST(copies_of_one_triangle_stay_shallow_and_hit_the_lowest_index);
+    RUN_TEST(a_small_dense_cluster_in_a_large_scene_is_subdivided);
     RUN_TEST(a_flat_scene_builds_and_is_hit_from_both_sides);
     RUN_TEST(quads_on_split_planes_are_hit_by_crossing_rays);
     RUN_TEST(zero_area_triangles_are_left_out);

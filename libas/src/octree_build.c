@@ -7,8 +7,10 @@
  * Termination and budgets:
  *  - depth limit: args->max_depth, else AS_OCTREE_DEFAULT_DEPTH, never more
  *    than AS_OCTREE_MAX_DEPTH (the traversal stack);
- *  - no progress: a cell whose every non-empty child would hold all of its
- *    triangles (coincident copies, triangles spanning the cell) stays a leaf;
+ *  - no progress: a cell whose non-empty children, two or more, would each
+ *    hold all of its triangles (triangles spanning the cell, copies on a
+ *    mid-plane) stays a leaf; one non-empty child is progress (the cell
+ *    shrinks around its triangles at no cost in references);
  *  - reference budget: the structure holds at most split_budget x N
  *    references; cells are split in breadth-first order while the budget
  *    allows, the rest stay leaves.
@@ -195,11 +197,17 @@ as_error_t as_octree_build(const as_mesh_t *mesh, const as_build_args_t *args, a
         for (uint32_t j = 0; j < nc && err == AS_OK; ++j) {
             oct_cell *c = &cells[cand[j]];
             uint64_t sum = 0;
-            int progress = 0;
+            int progress = 0, nonempty = 0;
             for (int ch = 0; ch < 8; ++ch) {
                 sum += job.child_counts[j][ch];
+                nonempty += job.child_counts[j][ch] != 0;
                 if (job.child_counts[j][ch] && job.child_counts[j][ch] < c->count) progress = 1;
             }
+            /* All triangles in one child: the split adds no reference and
+             * shrinks the cell around them (geometry clustered in a corner of
+             * a large cube), so it is progress; the depth limit ends it for
+             * coincident copies. */
+            if (nonempty == 1) progress = 1;
             if (!progress || (double)(refs - c->count + sum) > budget) continue;
             refs = refs - c->count + sum;
             if (next_end + 8 > cell_cap) {
