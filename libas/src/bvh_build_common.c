@@ -396,28 +396,58 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
     return best;
 }
 
-/* ---- one node's work on several threads (the root, while the other
- * threads would wait for its children) */
+/* ---- one node's work on several threads (bvh_split_threads) */
+
+/* A node's references in pieces that the threads of a split take in turn
+ * from a shared counter, so that a helper thread which gets no core (its
+ * build thread's partner is busy with a task of its own) delays nothing: the
+ * others take its pieces. About 8 per thread, of at least 16,384. */
+static uint32_t piece_count(uint32_t count, unsigned threads)
+{
+    uint32_t n = 8 * threads;
+    if (n > count / 16384) n = count / 16384;
+    return n ? n : 1;
+}
+
+static void obj_bins_merge(obj_bins *to, const obj_bins *from, uint32_t nb)
+{
+    for (int axis = 0; axis < 3; ++axis)
+        for (uint32_t x = 0; x < nb; ++x) {
+            to->lo[axis][x] = v4f_min(to->lo[axis][x], from->lo[axis][x]);
+            to->hi[axis][x] = v4f_max(to->hi[axis][x], from->hi[axis][x]);
+            to->n[axis][x] += from->n[axis][x];
+        }
+}
 
 typedef struct par_bin_job {
     const bvh_ref *refs;
-    uint32_t count, nb;
+    uint32_t count, nb, pieces;
+    atomic_uint next;
     v4f vcmin, vscale, last;
-    obj_bins *bins;   /* one per chunk */
+    obj_bins *bins;   /* 2 per thread: bins[c] its sum, bins[n + c] its scratch */
 } par_bin_job;
 
 static void par_bin(void *user, unsigned c, unsigned n)
 {
     par_bin_job *j = user;
-    uint32_t first, end;
-    chunk_range(j->count, c, n, &first, &end);
-    bin_all(j->refs + first, end - first, j->vcmin, j->vscale, j->last, j->nb, &j->bins[c]);
+    obj_bins *acc = &j->bins[c], *tmp = &j->bins[n + c];
+    /* Each piece is binned alone and merged: min, max and counts are exact,
+     * so the merged bins are those of one pass whoever binned what. */
+    bin_all(j->refs, 0, j->vcmin, j->vscale, j->last, j->nb, acc); /* empty bins */
+    for (;;) {
+        const uint32_t k = atomic_fetch_add_explicit(&j->next, 1, memory_order_relaxed);
+        if (k >= j->pieces) break;
+        uint32_t first, end;
+        chunk_range(j->count, k, j->pieces, &first, &end);
+        bin_all(j->refs + first, end - first, j->vcmin, j->vscale, j->last, j->nb, tmp);
+        obj_bins_merge(acc, tmp, j->nb);
+    }
 }
 
 bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t nb,
                                           unsigned threads)
 {
-    obj_bins *bins = threads > 1 ? malloc(sizeof(obj_bins) * threads) : NULL;
+    obj_bins *bins = threads > 1 ? malloc(sizeof(obj_bins) * 2 * threads) : NULL;
     if (!bins) return bvh_find_object_split(refs, count, cb2, nb);
     bvh_object_split best;
     int use[3];
@@ -427,16 +457,19 @@ bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, c
     }
     const float cmin[4] = {best.cmin[0], best.cmin[1], best.cmin[2], 0.0f};
     const float scale[4] = {best.scale[0], best.scale[1], best.scale[2], 0.0f};
-    par_bin_job j = {refs, count, nb, v4f_load(cmin), v4f_load(scale), v4f_set1((float)(nb - 1)), bins};
+    par_bin_job j;
+    j.refs = refs;
+    j.count = count;
+    j.nb = nb;
+    j.pieces = piece_count(count, threads);
+    atomic_init(&j.next, 0);
+    j.vcmin = v4f_load(cmin);
+    j.vscale = v4f_load(scale);
+    j.last = v4f_set1((float)(nb - 1));
+    j.bins = bins;
     as_parallel_run(threads, par_bin, &j);
     /* min, max and sums are exact: the merged bins are those of one pass. */
-    for (unsigned c = 1; c < threads; ++c)
-        for (int axis = 0; axis < 3; ++axis)
-            for (uint32_t x = 0; x < nb; ++x) {
-                bins[0].lo[axis][x] = v4f_min(bins[0].lo[axis][x], bins[c].lo[axis][x]);
-                bins[0].hi[axis][x] = v4f_max(bins[0].hi[axis][x], bins[c].hi[axis][x]);
-                bins[0].n[axis][x] += bins[c].n[axis][x];
-            }
+    for (unsigned c = 1; c < threads; ++c) obj_bins_merge(&bins[0], &bins[c], nb);
     uint64_t occupied[3][BVH_MAX_BINS / 64];
     occupied_from_counts(&bins[0], nb, occupied);
     sweep_object_bins(&bins[0], occupied, use, nb, &best);
@@ -529,6 +562,16 @@ int bvh_share_task(bvh_builder *b, as_task_pool *pool, const void *task)
     if (!pool || !as_task_pool_hungry(pool)) return 0;
     if (atomic_fetch_add(&b->tasks_shared, 1) >= BVH_MAX_SHARED_TASKS) return 0;
     return as_task_pool_push(pool, task);
+}
+
+unsigned bvh_split_threads(const bvh_builder *b, as_task_pool *pool, const bvh_pending_stack *s, uint32_t count,
+                           int root)
+{
+    if (count < BVH_SPLIT_MT_MIN_PRIMS || !pool) return root ? b->root_threads : 1;
+    if (root || count >= b->ref_count / 4) return b->root_threads;
+    if (s->next < s->n) return 1;
+    const unsigned idle = as_task_pool_idle(pool);
+    return idle + 1 < b->root_threads ? idle + 1 : b->root_threads;
 }
 
 void bvh_pending_offer(bvh_builder *b, as_task_pool *pool, bvh_pending_stack *s)
@@ -886,7 +929,9 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
     /* A leaf at the stack's depth whatever its size: the traversal stack
      * holds one entry per level. */
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->range.count <= 1 ||
-        t->depth + 1 >= b->depth_limit || !ctx->split(b, &t->range, &l, &r) || !bvh_local_pair(loc, &ln, &rn)) {
+        t->depth + 1 >= b->depth_limit ||
+        !ctx->split(b, &t->range, bvh_split_threads(b, pool, pend, t->range.count, t->depth == 0), &l, &r) ||
+        !bvh_local_pair(loc, &ln, &rn)) {
         bvh_local_leaf(loc, t->node, b->refs + t->range.first, t->range.count);
         return;
     }

@@ -146,6 +146,17 @@ static inline void bvh_pending_pop(bvh_pending_stack *s)
 }
 /* When a thread of the pool waits for work, shares the oldest entry. */
 void bvh_pending_offer(bvh_builder *b, struct as_task_pool *pool, bvh_pending_stack *s);
+/* How many threads may split a node of `count` references together: every
+ * build thread for the root and for nodes of at least a quarter of the
+ * references (the top of a lopsided tree: bmw-m6's first SBVH splits leave
+ * 733,338 and 608,590 of 792,582 references on one side, and the other
+ * thread, done with the small side, waited 24-28 ms at each); for another
+ * node of at least BVH_SPLIT_MT_MIN_PRIMS, 1 + the threads of the pool that
+ * wait for work when the task has nothing left to offer them; else 1. The
+ * helpers take the node's work in pieces from a shared counter, so one
+ * that gets no core (the other build threads being busy) delays nothing. */
+unsigned bvh_split_threads(const bvh_builder *b, struct as_task_pool *pool, const bvh_pending_stack *s, uint32_t count,
+                           int root);
 
 /* Checks the arguments shared by every BVH builder, fills the references
  * (degenerate triangles left out) and allocates node_capacity_per_ref x
@@ -309,14 +320,15 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
 uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
                                  bvh_range *right, unsigned threads);
 /* Nodes with at least this many references are split on several threads
- * when nothing else could run (the root). */
+ * when nothing else could run (bvh_split_threads). */
 #define BVH_SPLIT_MT_MIN_PRIMS 65536
 
 /* In-place builders: a split function partitions node's references and
  * fills `left` and `right` (node's range in two non-empty parts, in order,
  * with their bounds), returning 1, or returns 0 to make a leaf. It is called
- * only for count >= 2 below the depth cap. */
-typedef int (*bvh_split_fn)(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right);
+ * only for count >= 2 below the depth cap; it may spread its work over
+ * `threads` threads (bvh_split_threads), with the result of one. */
+typedef int (*bvh_split_fn)(bvh_builder *b, const bvh_range *node, unsigned threads, bvh_range *left, bvh_range *right);
 /* Builds the subtree of at most BVH_EXACT_MAX references of range r under
  * `node` (at `depth`) by the exact SAH sweep, with the binned builder's leaf
  * rule: a split where it costs less than a leaf or the node holds more than

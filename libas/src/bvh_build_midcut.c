@@ -46,8 +46,9 @@ static void select_kth(bvh_ref *r, uint32_t n, uint32_t k, int axis)
     }
 }
 
-static int midcut_split(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right)
+static int midcut_split(bvh_builder *b, const bvh_range *node, unsigned threads, bvh_range *left, bvh_range *right)
 {
+    (void)threads;
     const uint32_t first = node->first, count = node->count;
     if (count <= b->args->max_leaf_size) return 0;
     const bvh_box cb = node->cbox; /* doubled: only the longest axis matters */

@@ -24,15 +24,12 @@
  * scenes' costs fell by 0.1-1.4%, at no build time measurable. */
 #define BVH_DOUBLE_BINS_MIN 1024
 
-static int binned_split(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right)
+static int binned_split(bvh_builder *b, const bvh_range *node, unsigned threads, bvh_range *left, bvh_range *right)
 {
     const float ci = b->args->cost_intersection, ct = b->args->cost_traversal;
     const uint32_t count = node->count;
     uint32_t nb = b->args->bin_count;
     if (count > BVH_DOUBLE_BINS_MIN) nb = 2 * nb < BVH_MAX_BINS ? 2 * nb : BVH_MAX_BINS;
-    /* Only the root holds every reference; while it is split the other
-     * threads have nothing to do. */
-    const unsigned threads = count == b->ref_count && count >= BVH_SPLIT_MT_MIN_PRIMS ? b->root_threads : 1;
     const bvh_object_split s =
         threads > 1 ? bvh_find_object_split_mt(b->refs + node->first, count, &node->cbox, nb, threads)
                     : bvh_find_object_split(b->refs + node->first, count, &node->cbox, nb);

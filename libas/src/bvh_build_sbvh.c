@@ -54,13 +54,28 @@
 #define SBVH_ARENA_REFS 32768u      /* 1 MB: about 4 x BVH_PARALLEL_MIN_PRIMS, a path of sides */
 #define SBVH_LEAF_CHUNK_REFS 2048u  /* 64 KB */
 
+/* Sides of nodes of at least SBVH_SPARE_MIN_REFS references come from the
+ * arrays that split nodes of that size gave back, when one is large enough,
+ * and only otherwise from malloc: at the top of the tree each side is a new
+ * array as large as the node, whose pages the one thread that partitions it
+ * faults in while the others may wait (bmw-m6, two threads: the root's
+ * partition took 18 ms and its left child's 14 ms, mostly those faults). A
+ * split gives back its node's array as it takes two, so about half of the
+ * sides' pages are reused. At most SBVH_SPARE_MAX arrays wait, freed at the
+ * end of the build. */
+#define SBVH_SPARE_MIN_REFS 65536u  /* 2 MB */
+#define SBVH_SPARE_MAX 4u
+
 typedef struct sbvh_chunk {
     struct sbvh_chunk *next;
     char pad[32 - sizeof(void *)];  /* the references start 32 bytes in */
 } sbvh_chunk;
 
+struct sbvh_ctx;
+
 typedef struct sbvh_mem {
     struct sbvh_mem *next_free, *next_all;
+    struct sbvh_ctx *ctx;
     bvh_ref *arena;
     uint32_t arena_top;
     bvh_ref *leaf;               /* the current chunk's references */
@@ -75,7 +90,52 @@ typedef struct sbvh_ctx {
     pthread_mutex_t mem_lock;
     sbvh_mem *free_mems, *all_mems;
     atomic_int out_of_memory;    /* a leaf could not be stored */
+    bvh_ref *spare[SBVH_SPARE_MAX];   /* large arrays given back, for the next sides (under mem_lock) */
+    uint32_t spare_cap[SBVH_SPARE_MAX];
+    unsigned spare_count;
 } sbvh_ctx;
+
+/* A malloc'd reference array of room for at least cap references (*got:
+ * its room): a spare one when one is large enough (the smallest such), else
+ * a new one. */
+static bvh_ref *block_acquire(sbvh_ctx *ctx, uint32_t cap, uint32_t *got)
+{
+    *got = cap;
+    if (ctx && cap >= SBVH_SPARE_MIN_REFS) {
+        pthread_mutex_lock(&ctx->mem_lock);
+        unsigned best = SBVH_SPARE_MAX;
+        for (unsigned i = 0; i < ctx->spare_count; ++i)
+            if (ctx->spare_cap[i] >= cap && (best == SBVH_SPARE_MAX || ctx->spare_cap[i] < ctx->spare_cap[best])) best = i;
+        if (best < SBVH_SPARE_MAX) {
+            bvh_ref *p = ctx->spare[best];
+            *got = ctx->spare_cap[best];
+            ctx->spare_count--;
+            ctx->spare[best] = ctx->spare[ctx->spare_count];
+            ctx->spare_cap[best] = ctx->spare_cap[ctx->spare_count];
+            pthread_mutex_unlock(&ctx->mem_lock);
+            return p;
+        }
+        pthread_mutex_unlock(&ctx->mem_lock);
+    }
+    return malloc(sizeof(bvh_ref) * (size_t)cap);
+}
+
+/* Gives back a malloc'd array of room for cap references: kept as a spare
+ * when it is large and there is room, else freed. */
+static void block_release(sbvh_ctx *ctx, bvh_ref *p, uint32_t cap)
+{
+    if (!p) return;
+    if (ctx && cap >= SBVH_SPARE_MIN_REFS) {
+        pthread_mutex_lock(&ctx->mem_lock);
+        if (ctx->spare_count < SBVH_SPARE_MAX) {
+            ctx->spare[ctx->spare_count] = p;
+            ctx->spare_cap[ctx->spare_count++] = cap;
+            p = NULL;
+        }
+        pthread_mutex_unlock(&ctx->mem_lock);
+    }
+    free(p);
+}
 
 static sbvh_mem *mem_acquire(sbvh_ctx *ctx)
 {
@@ -84,6 +144,7 @@ static sbvh_mem *mem_acquire(sbvh_ctx *ctx)
     if (m) {
         ctx->free_mems = m->next_free;
     } else if ((m = calloc(1, sizeof *m)) != NULL) {
+        m->ctx = ctx;
         m->arena = malloc(sizeof(bvh_ref) * SBVH_ARENA_REFS); /* NULL: every side from malloc */
         m->next_all = ctx->all_mems;
         ctx->all_mems = m;
@@ -113,6 +174,8 @@ static void mem_free_all(sbvh_ctx *ctx)
         free(m);
     }
     ctx->all_mems = ctx->free_mems = NULL;
+    for (unsigned i = 0; i < ctx->spare_count; ++i) free(ctx->spare[i]);
+    ctx->spare_count = 0;
 }
 
 /* A copy of a leaf's references in the store; NULL when count is 0 or no
@@ -341,19 +404,46 @@ static void spatial_bin(const bvh_builder *b, const spatial_frame *f, const bvh_
     }
 }
 
+static void spatial_bins_merge(spatial_bins *to, const spatial_bins *from, uint32_t nb)
+{
+    for (int axis = 0; axis < 3; ++axis) {
+        to->occupied[axis] |= from->occupied[axis];
+        for (uint32_t i = 0; i < nb; ++i) {
+            to->lo[axis][i] = v4f_min(to->lo[axis][i], from->lo[axis][i]);
+            to->hi[axis][i] = v4f_max(to->hi[axis][i], from->hi[axis][i]);
+            to->enter[axis][i] += from->enter[axis][i];
+            to->leave[axis][i] += from->leave[axis][i];
+        }
+    }
+}
+
+/* The node's references in pieces taken in turn from a shared counter (see
+ * piece_count in bvh_build_common.c): a helper thread without a core
+ * delays nothing. */
 typedef struct par_spatial_job {
     const bvh_builder *b;
     const spatial_frame *f;
     const bvh_ref *refs;
-    uint32_t count;
-    spatial_bins *bins;
+    uint32_t count, pieces;
+    atomic_uint next;
+    spatial_bins *bins;   /* 2 per thread: bins[c] its sum, bins[n + c] its scratch */
 } par_spatial_job;
 
 static void par_spatial(void *user, unsigned c, unsigned n)
 {
-    const par_spatial_job *j = user;
-    const uint32_t first = (uint32_t)((uint64_t)j->count * c / n), end = (uint32_t)((uint64_t)j->count * (c + 1) / n);
-    spatial_bin(j->b, j->f, j->refs + first, end - first, &j->bins[c]);
+    par_spatial_job *j = user;
+    spatial_bins *acc = &j->bins[c], *tmp = &j->bins[n + c];
+    /* Unions and sums are exact: the merged bins are those of one pass
+     * whoever binned which piece. */
+    spatial_bin(j->b, j->f, j->refs, 0, acc); /* empty bins */
+    for (;;) {
+        const uint32_t k = atomic_fetch_add_explicit(&j->next, 1, memory_order_relaxed);
+        if (k >= j->pieces) break;
+        const uint32_t first = (uint32_t)((uint64_t)j->count * k / j->pieces);
+        const uint32_t end = (uint32_t)((uint64_t)j->count * (k + 1) / j->pieces);
+        spatial_bin(j->b, j->f, j->refs + first, end - first, tmp);
+        spatial_bins_merge(acc, tmp, j->f->nb);
+    }
 }
 
 static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs, uint32_t count, const bvh_box *node_box,
@@ -392,21 +482,18 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
         fr.slab_lo[axis] = v4f_load(l);
         fr.slab_hi[axis] = v4f_load(h);
     }
-    spatial_bins one, *many = threads > 1 ? malloc(sizeof(spatial_bins) * threads) : NULL, *sb = &one;
+    spatial_bins one, *many = threads > 1 ? malloc(sizeof(spatial_bins) * 2 * threads) : NULL, *sb = &one;
     if (many) {
-        par_spatial_job j = {b, &fr, refs, count, many};
+        par_spatial_job j;
+        j.b = b;
+        j.f = &fr;
+        j.refs = refs;
+        j.count = count;
+        j.pieces = 8 * threads < count / 16384 ? 8 * threads : (count / 16384 ? count / 16384 : 1);
+        atomic_init(&j.next, 0);
+        j.bins = many;
         as_parallel_run(threads, par_spatial, &j);
-        /* Unions and sums are exact: the merged bins are those of one pass. */
-        for (unsigned c = 1; c < threads; ++c)
-            for (int axis = 0; axis < 3; ++axis) {
-                many[0].occupied[axis] |= many[c].occupied[axis];
-                for (uint32_t i = 0; i < nb; ++i) {
-                    many[0].lo[axis][i] = v4f_min(many[0].lo[axis][i], many[c].lo[axis][i]);
-                    many[0].hi[axis][i] = v4f_max(many[0].hi[axis][i], many[c].hi[axis][i]);
-                    many[0].enter[axis][i] += many[c].enter[axis][i];
-                    many[0].leave[axis][i] += many[c].leave[axis][i];
-                }
-            }
+        for (unsigned c = 1; c < threads; ++c) spatial_bins_merge(&many[0], &many[c], nb);
         sb = &many[0];
     } else {
         spatial_bin(b, &fr, refs, count, &one);
@@ -435,15 +522,19 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
 /* ---- partitions into two new arrays */
 
 /* Both sides of a split, each with room for every reference of the node:
- * from the arena (arena_mark: its top before, owned 0) or from malloc. */
+ * from the arena (arena_mark: its top before, owned 0) or malloc'd
+ * (block_acquire; lcap and rcap their room). */
 typedef struct sides {
     bvh_ref *l, *r;
     uint32_t nl, nr;
     int owned;
     uint32_t arena_mark;
+    uint32_t lcap, rcap;
 } sides;
 
-static int sides_alloc(sbvh_mem *m, uint32_t count, sides *out)
+/* right_first: the right side is expected to be the larger, so it takes
+ * the first (best-fitting) spare array, whose pages are already there. */
+static int sides_alloc(sbvh_mem *m, uint32_t count, int right_first, sides *out)
 {
     out->nl = out->nr = 0;
     const uint32_t cap = count ? count : 1;
@@ -456,8 +547,14 @@ static int sides_alloc(sbvh_mem *m, uint32_t count, sides *out)
         return 1;
     }
     out->owned = 1;
-    out->l = malloc(sizeof(bvh_ref) * cap);
-    out->r = malloc(sizeof(bvh_ref) * cap);
+    sbvh_ctx *ctx = m ? m->ctx : NULL;
+    if (right_first) {
+        out->r = block_acquire(ctx, cap, &out->rcap);
+        out->l = block_acquire(ctx, cap, &out->lcap);
+    } else {
+        out->l = block_acquire(ctx, cap, &out->lcap);
+        out->r = block_acquire(ctx, cap, &out->rcap);
+    }
     return out->l && out->r;
 }
 
@@ -465,8 +562,9 @@ static int sides_alloc(sbvh_mem *m, uint32_t count, sides *out)
 static void sides_free(sbvh_mem *m, sides *s)
 {
     if (s->owned) {
-        free(s->l);
-        free(s->r);
+        sbvh_ctx *ctx = m ? m->ctx : NULL;
+        block_release(ctx, s->l, s->lcap);
+        block_release(ctx, s->r, s->rcap);
     } else if (s->l) {
         m->arena_top = s->arena_mark;
     }
@@ -476,7 +574,7 @@ static void sides_free(sbvh_mem *m, sides *s)
 
 static int partition_object(sbvh_mem *m, const bvh_ref *refs, uint32_t count, const bvh_object_split *s, sides *out)
 {
-    if (!sides_alloc(m, count, out)) return 0;
+    if (!sides_alloc(m, count, s->right_count > s->left_count, out)) return 0;
     for (uint32_t i = 0; i < count; ++i) {
         if (bvh_object_split_left(&refs[i], s)) out->l[out->nl++] = refs[i];
         else out->r[out->nr++] = refs[i];
@@ -486,7 +584,7 @@ static int partition_object(sbvh_mem *m, const bvh_ref *refs, uint32_t count, co
 
 static int partition_half(sbvh_mem *m, const bvh_ref *refs, uint32_t count, sides *out)
 {
-    if (!sides_alloc(m, count, out)) return 0;
+    if (!sides_alloc(m, count, 0, out)) return 0;
     out->nl = count / 2;
     out->nr = count - count / 2;
     memcpy(out->l, refs, sizeof(bvh_ref) * out->nl);
@@ -499,7 +597,7 @@ static int partition_half(sbvh_mem *m, const bvh_ref *refs, uint32_t count, side
 static int partition_spatial(const bvh_builder *b, sbvh_mem *m, const bvh_ref *refs, uint32_t count,
                              const spatial_split *s, sides *out)
 {
-    if (!sides_alloc(m, count, out)) return 0;
+    if (!sides_alloc(m, count, s->nr > s->nl, out)) return 0;
     const int axis = s->axis;
     const float pos = s->pos;
     const double al = bvh_box_half_area(&s->left), ar = bvh_box_half_area(&s->right);
@@ -543,13 +641,14 @@ typedef struct sbvh_task {
     bvh_ref *refs;       /* the task's: malloc'd (owned) or in the arena of the thread that builds it */
     uint32_t count;
     int owned;
+    uint32_t cap;        /* owned: the array's room (block_release) */
     uint64_t budget;     /* extra references this subtree may add */
     uint32_t depth;
 } sbvh_task;
 
 static void copy_sides(sbvh_mem *m, const bvh_ref *refs, uint32_t count, uint32_t nl, sides *out)
 {
-    if (!sides_alloc(m, count, out)) return;
+    if (!sides_alloc(m, count, count - nl > nl, out)) return;
     out->nl = nl;
     out->nr = count - nl;
     memcpy(out->l, refs, sizeof(bvh_ref) * nl);
@@ -559,15 +658,13 @@ static void copy_sides(sbvh_mem *m, const bvh_ref *refs, uint32_t count, uint32_
 /* Splits one node into `sd` (both sides non-empty), or returns 0 for a
  * leaf. `refs` may be reordered. */
 static int sbvh_split(sbvh_ctx *ctx, sbvh_mem *m, const bvh_box *node_box, bvh_ref *refs, uint32_t count,
-                      uint64_t budget, int root, sides *sd)
+                      uint64_t budget, int root, unsigned threads, sides *sd)
 {
     bvh_builder *b = ctx->b;
     const float ci = b->args->cost_intersection, ct = b->args->cost_traversal;
     const uint32_t nb = b->args->bin_count;
     const double area = bvh_box_half_area(node_box);
     const double leaf_cost = ci * (double)count;
-    /* While the root is split the other threads have nothing to do. */
-    const unsigned threads = root && count >= BVH_SPLIT_MT_MIN_PRIMS ? b->root_threads : 1;
 
     /* The object split: exact for small nodes, binned above. */
     bvh_object_split os;
@@ -583,7 +680,8 @@ static int sbvh_split(sbvh_ctx *ctx, sbvh_mem *m, const bvh_box *node_box, bvh_r
             os.right = bvh_refs_box(refs + small_nl, count - small_nl);
         }
     } else if (threads > 1) {
-        os = bvh_find_object_split_mt(refs, count, &b->root_cbox, nb, threads);
+        const bvh_box cb = root ? b->root_cbox : bvh_refs_centroid2_box(refs, count);
+        os = bvh_find_object_split_mt(refs, count, &cb, nb, threads);
     } else {
         const bvh_box cb = bvh_refs_centroid2_box(refs, count);
         os = bvh_find_object_split(refs, count, &cb, nb);
@@ -652,7 +750,7 @@ static void sbvh_leaf(bvh_local *loc, sbvh_mem *m, const sbvh_task *t)
         }
     }
     if (!stored) count = 0; /* cancelled: the tree is thrown away */
-    if (t->owned) free(t->refs);
+    if (t->owned) block_release(t->ctx, t->refs, t->cap);
     bvh_local_leaf(loc, t->node, stored, count);
 }
 
@@ -665,10 +763,11 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pe
 {
     bvh_builder *b = t->ctx->b;
     bvh_pending_offer(b, pool, pend);
-    sides sd = {NULL, NULL, 0, 0, 0, 0};
+    sides sd = {NULL, NULL, 0, 0, 0, 0, 0, 0};
     int32_t l, r;
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->count <= 1 || t->depth + 1 >= b->depth_limit ||
-        !sbvh_split(t->ctx, m, &b->nodes[t->node].box, t->refs, t->count, t->budget, t->depth == 0, &sd)) {
+        !sbvh_split(t->ctx, m, &b->nodes[t->node].box, t->refs, t->count, t->budget, t->depth == 0,
+                    bvh_split_threads(b, pool, pend, t->count, t->depth == 0), &sd)) {
         sbvh_leaf(loc, m, t);
         return;
     }
@@ -677,7 +776,7 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pe
         sbvh_leaf(loc, m, t);
         return;
     }
-    if (t->owned) free(t->refs);
+    if (t->owned) block_release(t->ctx, t->refs, t->cap);
     const uint64_t spent = (uint64_t)sd.nl + sd.nr - t->count;
     const uint64_t rest = t->budget - spent;
     const uint64_t lbudget = (uint64_t)((double)rest * sd.nl / ((double)sd.nl + sd.nr));
@@ -690,8 +789,8 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pe
 
     /* Owned sides pass to the children's tasks; arena sides come back
      * here once both subtrees are done. */
-    const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, sd.owned, lbudget, t->depth + 1};
-    const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, sd.owned, rbudget, t->depth + 1};
+    const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, sd.owned, sd.lcap, lbudget, t->depth + 1};
+    const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, sd.owned, sd.rcap, rbudget, t->depth + 1};
     bvh_pending rp = {&rt, 0};
     const int tracked = pool && sd.owned && rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_pending_push(pend, &rp);
     sbvh_subtree(pool, loc, m, pend, &lt);
@@ -758,7 +857,7 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     const int32_t root = bvh_new_node(&b);
     b.nodes[root].box = b.root_box;
     b.nodes[root].left = b.nodes[root].right = -1;
-    const sbvh_task t = {&ctx, root, root_refs, b.ref_count, 1, budget, 0};
+    const sbvh_task t = {&ctx, root, root_refs, b.ref_count, 1, b.ref_count, budget, 0};
     const unsigned threads = (unsigned)b.max_threads + 1;
     b.root_threads = threads > 256 ? 256 : threads;
     if (threads < 2 || b.ref_count < 2 * BVH_PARALLEL_MIN_PRIMS || !as_task_pool_run(threads, sizeof t, &t, sbvh_run, NULL))

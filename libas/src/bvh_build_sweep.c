@@ -81,8 +81,9 @@ static uint32_t sweep_partition(bvh_builder *b, uint32_t first, uint32_t count, 
     return mid;
 }
 
-static int sweep_split(bvh_builder *b, const bvh_range *node, bvh_range *left, bvh_range *right)
+static int sweep_split(bvh_builder *b, const bvh_range *node, unsigned threads, bvh_range *left, bvh_range *right)
 {
+    (void)threads;
     const uint32_t mid = sweep_partition(b, node->first, node->count, &node->box);
     if (mid <= node->first || mid >= node->first + node->count) return 0;
     left->first = node->first;

@@ -44,11 +44,14 @@ int as_task_pool_push(as_task_pool *p, const void *task)
 
 /* A thread woken for a task still counts as waiting until it has taken
  * it: a thread is hungry only while the waiting outnumber the queued. */
-int as_task_pool_hungry(as_task_pool *p)
+unsigned as_task_pool_idle(as_task_pool *p)
 {
-    return atomic_load_explicit(&p->waiting, memory_order_relaxed) >
-           atomic_load_explicit(&p->queued, memory_order_relaxed);
+    const int d = atomic_load_explicit(&p->waiting, memory_order_relaxed) -
+                  atomic_load_explicit(&p->queued, memory_order_relaxed);
+    return d > 0 ? (unsigned)d : 0u;
 }
+
+int as_task_pool_hungry(as_task_pool *p) { return as_task_pool_idle(p) > 0; }
 
 static void *worker(void *arg)
 {

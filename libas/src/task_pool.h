@@ -29,6 +29,9 @@ int as_task_pool_push(as_task_pool *pool, const void *task);
 /* Whether more threads wait for work than tasks are queued for them: a
  * hint for when to push, read without the lock. */
 int as_task_pool_hungry(as_task_pool *pool);
+/* How many more threads wait for work than tasks are queued (0 or more),
+ * read without the lock: a hint. */
+unsigned as_task_pool_idle(as_task_pool *pool);
 
 /* Runs fn(user, i, n) for i in [0, n) on n threads (the caller's included)
  * and returns when all are done; n is clamped to [1, 256]. A thread that
