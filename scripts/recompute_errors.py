@@ -3,6 +3,7 @@
 
     recompute_errors.py check SCENE.asf RAYS HITS [--any-hit] [--samples N]
                         [--seed S] [--json OUT] [--compare FILE [--select K=V]...]
+    recompute_errors.py table CHECK.json...
     recompute_errors.py rays SCENE.asf -o OUT.rays [camera options]
     recompute_errors.py rays SCENE.asf -o OUT.rays --toward-vertices N [camera options]
     recompute_errors.py rays SCENE.asf -o OUT.rays --shadow-from RAYS HITS [--light X,Y,Z]...
@@ -14,6 +15,10 @@ counts false misses, false hits and wrong primitives with the project's tie
 rule (docs/accuracy.md). With --compare it says whether figures written by
 `as-trace --format json --verify` or by tools/as-accuracy agree with these
 within sampling error.
+
+`table` prints the JSON files that `check --compare` wrote as one markdown
+table: per file, the recomputed counts beside the compared ones and whether
+they agree.
 
 `rays` writes ray files for `as-trace --rays`: pinhole primary rays through
 the pixel centres, or shadow rays from the hits of a hit file toward point
@@ -751,6 +756,39 @@ def print_summary(res):
                       % (cmp_["max_t_error"]["recomputed"], cmp_["max_t_error"]["other"]))
 
 
+def cmd_table(args):
+    rows = []
+    for path in args.files:
+        try:
+            with open(path) as f:
+                res = json.load(f)
+        except (OSError, ValueError) as e:
+            fail(EXIT_INVALID, "%s: not a check result (%s)" % (path, e))
+        if res.get("tool") != TOOL or "compare" not in res:
+            fail(EXIT_INVALID, "%s: not written by check --compare" % path)
+        rows.append((os.path.basename(path), res))
+    out = sys.stdout
+    out.write("| check | query | sampled | false misses | false hits | wrong primitives | compared with | "
+              "its rays | its counts | p (lowest) | max rel. t error here / there | agree |\n")
+    out.write("|---|---|---:|---:|---:|---:|---|---:|---|---:|---|---|\n")
+    disagree = 0
+    for name, res in rows:
+        cmp_ = res["compare"]
+        m = cmp_["metrics"]
+        ps = [v["p_value"] for v in m.values() if v["p_value"] is not None]
+        te = cmp_.get("max_t_error")
+        out.write("| %s | %s | %d | %d | %d | %d | %s | %d | %s | %s | %s | %s |\n" % (
+            name[:-5] if name.endswith(".json") else name, res["query"], res["sampled"], res["false_misses"],
+            res["false_hits"], res["wrong_primitive"], cmp_["source"], cmp_["other_verified"],
+            " / ".join(str(m[k]["other"]) for k in ("false_misses", "false_hits", "wrong_primitive")),
+            "exact" if cmp_["exact"] else ("%.3g" % min(ps) if ps else "-"),
+            "%.2e / %.2e" % (te["recomputed"], te["other"]) if te else "-",
+            "yes" if cmp_["agree"] else "NO"))
+        disagree += not cmp_["agree"]
+    out.write("\n%d checks, %d agree, %d disagree.\n" % (len(rows), len(rows) - disagree, disagree))
+    return EXIT_DISAGREE if disagree else 0
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="recompute_errors.py", description=__doc__.split("\n\n")[1],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -781,6 +819,8 @@ def main(argv=None):
     c.add_argument("-j", "--jobs", type=int, default=os.cpu_count() or 1,
                    help="worker processes (default: one per core)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress")
+    t = sub.add_parser("table", help="one markdown table of check --compare results")
+    t.add_argument("files", nargs="+", metavar="CHECK.json")
     r = sub.add_parser("rays", help="write a ray file for as-trace --rays")
     r.add_argument("asf", help="the .asf whose scene box places the default camera and lights")
     r.add_argument("-o", "--output", required=True)
@@ -799,13 +839,15 @@ def main(argv=None):
     r.add_argument("--light", action="append", metavar="X,Y,Z", help="a point light (repeatable; default four)")
     r.add_argument("--offset", type=float, default=1e-4,
                    help="shadow ray origins leave the surface by this fraction of the scene diagonal")
-    c.error, r.error = usage_error(c), usage_error(r)
+    c.error, r.error, t.error = usage_error(c), usage_error(r), usage_error(t)
     args = p.parse_args(argv)
     try:
         if args.command == "check":
             if args.samples <= 0 or args.jobs <= 0:
                 p.error("--samples and --jobs need positive counts")
             return cmd_check(args)
+        if args.command == "table":
+            return cmd_table(args)
         if args.width <= 0 or args.height <= 0:
             p.error("--width and --height need positive counts")
         return cmd_rays(args)

@@ -27,3 +27,8 @@ add_test(NAME recompute_errors_damaged_hits
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/data/recompute/check_recompute.py damaged $<TARGET_FILE_DIR:as-build>
           ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/recompute-out)
 set_tests_properties(recompute_errors_damaged_hits PROPERTIES LABELS "tools;accuracy" TIMEOUT 300)
+# scripts/recompute_published.sh against the bunny's published H100 rows.
+add_test(NAME recompute_published_bunny
+  COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/data/recompute/check_recompute.py published $<TARGET_FILE_DIR:as-build>
+          ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/recompute-out)
+set_tests_properties(recompute_published_bunny PROPERTIES LABELS "tools;accuracy" TIMEOUT 300)

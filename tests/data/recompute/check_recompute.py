@@ -3,6 +3,7 @@
 
     check_recompute.py match TOOLS_DIR SOURCE_DIR WORK_DIR STRUCTURE INTERSECTOR
     check_recompute.py damaged TOOLS_DIR SOURCE_DIR WORK_DIR
+    check_recompute.py published TOOLS_DIR SOURCE_DIR WORK_DIR
 
 match: builds the bundled bunny, writes three ray files with the script
 (camera rays, rays aimed at vertices and edge midpoints, shadow rays from
@@ -14,6 +15,11 @@ error.
 damaged: breaks a known number of records of a correct hit file in known
 ways and requires the recomputation to count exactly those and to report
 disagreement (exit 6); bad files must be refused (exit 3).
+
+published: runs scripts/recompute_published.sh on the bunny (CPU, small
+image) against the bunny's published H100 accuracy rows: every check must
+agree and the summary must say so; against a copy of those rows in which
+the checked row claims 50% false misses it must disagree (exit 6).
 """
 import json
 import os
@@ -165,14 +171,54 @@ def damaged(s):
     print("truncated and swapped files refused")
 
 
+def published(s):
+    script = os.path.join(s.src, "scripts", "recompute_published.sh")
+    acc = os.path.join(s.src, "docs", "results", "accuracy-h100", "bunny", "accuracy.json")
+    env = dict(os.environ, BIN=s.tools, DEVICE="cpu", W="320", H="240", VERIFY="20000", SAMPLES="400",
+               INTERSECTORS="watertight-double")
+    variant = "bvh sah bvh2-child-bounds BVH (SAH)"
+
+    def go(out, accuracy, expect):
+        cmd = ["sh", script, s.path(out), os.path.join(s.src, "scenes", "bunny.drc"), "-", accuracy, variant]
+        sys.stderr.write("+ %s\n" % " ".join(cmd))
+        p = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        sys.stderr.write(p.stderr[-4000:])
+        if p.returncode != expect:
+            die("recompute_published.sh exited %d, expected %d\n%s" % (p.returncode, expect, p.stdout))
+        with open(s.path(out + "/summary.md")) as f:
+            return f.read()
+
+    text = go("published-ok", acc, 0)
+    if "4 checks, 4 agree, 0 disagree." not in text:
+        die("the summary does not report 4 agreeing checks:\n" + text)
+    with open(acc) as f:
+        data = json.load(f)
+    hit = 0
+    for row in data["rows"]:
+        if row["variant"] == "BVH (SAH)" and row["intersector"] == "watertight-double" and row["workload"] == "primary":
+            row["false_misses"] = row["verified"] // 2
+            hit += 1
+    if hit != 1:
+        die("the bunny's published rows have %d BVH (SAH) watertight-double primary rows, not 1" % hit)
+    wrong = s.path("published-wrong.json")
+    with open(wrong, "w") as f:
+        json.dump(data, f)
+    text = go("published-wrong", wrong, 6)
+    if "| NO |" not in text or "1 disagree." not in text:
+        die("a published row with 50% false misses was not reported as disagreeing:\n" + text)
+    print("published rows: 4 checks agree; a false row is reported")
+
+
 def main():
-    if len(sys.argv) < 5 or sys.argv[1] not in ("match", "damaged"):
+    if len(sys.argv) < 5 or sys.argv[1] not in ("match", "damaged", "published"):
         die(__doc__)
     s = Setup(sys.argv[2], sys.argv[3], sys.argv[4])
     if sys.argv[1] == "match":
         if len(sys.argv) != 7:
             die(__doc__)
         match(s, sys.argv[5], sys.argv[6])
+    elif sys.argv[1] == "published":
+        published(s)
     else:
         damaged(s)
     print("check_recompute: OK")
