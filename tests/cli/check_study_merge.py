@@ -145,6 +145,26 @@ def main():
         code, _, err = run(study + ["--merge"] + dirs + ["--out", out])
         check(code == 1 and words in err, "--merge refuses %s" % what + ("" if code == 1 and words in err else
                                                                          " (exit %d: %s)" % (code, err.strip())))
+    # --replace: a variant measured in two parts comes from the later one, and
+    # results.json says which row was replaced by which part's.
+    for order, winner in (([one, single], single), ([single, one], one)):
+        rep_out = os.path.join(work, "replaced-%d" % len(FAILS))
+        shutil.rmtree(rep_out, ignore_errors=True)
+        code, _, err = run(study + ["--merge"] + order + ["--replace", "--out", rep_out])
+        check(code == 0, "--merge --replace of parts that share a variant exits 0" +
+              ("" if code == 0 else ": " + err[-400:]))
+        if code:
+            continue
+        got = json.load(open(os.path.join(rep_out, "bunny", "results.json")))
+        want = json.load(open(os.path.join(winner, "results.json")))
+        row = lambda d: next(v for v in d["variants"] if v["variant"] == "BVH (SAH)")
+        check(row(got).get("whitted") == row(want).get("whitted") and row(got).get("ao") == row(want).get("ao"),
+              "--replace takes BVH (SAH) from the later part, %s" % os.path.basename(os.path.dirname(winner)))
+        check(sorted(v["variant"] for v in got["variants"]) == sorted(both), "--replace keeps one row per variant")
+        check(got.get("replaced") == [{"variant": "BVH (SAH)", "from": order[0], "by": order[1]}],
+              "results.json names the replaced row and both parts")
+    code, _, err = run(study + ["--replace", bunny] + small())
+    check(code == 1 and "--replace goes with --merge" in err, "--replace without --merge is a usage error")
     code, _, err = run(study + ["--merge", os.path.join(work, "nothing"), "--out", refused])
     check(code == 2, "--merge of a folder that is not there exits 2")
     code, _, err = run(study + [bunny, "--merge", one, "--out", refused])
