@@ -930,7 +930,7 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
      * holds one entry per level. */
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->range.count <= 1 ||
         t->depth + 1 >= b->depth_limit ||
-        !ctx->split(b, &t->range, bvh_split_threads(b, pool, pend, t->range.count, t->depth == 0), &l, &r) ||
+        !ctx->split(b, &t->range, t->depth == 0 ? b->root_threads : 1, &l, &r) ||
         !bvh_local_pair(loc, &ln, &rn)) {
         bvh_local_leaf(loc, t->node, b->refs + t->range.first, t->range.count);
         return;

@@ -146,7 +146,10 @@ static inline void bvh_pending_pop(bvh_pending_stack *s)
 }
 /* When a thread of the pool waits for work, shares the oldest entry. */
 void bvh_pending_offer(bvh_builder *b, struct as_task_pool *pool, bvh_pending_stack *s);
-/* How many threads may split a node of `count` references together: every
+/* How many threads may split an SBVH node of `count` references together
+ * (the in-place builders split only the root on several threads: binned SAH
+ * with these rules was slower with two threads, 1.09 and 1.12 times its time
+ * before on bathroom and bmw-m6 in 5 interleaved rounds): every
  * build thread for the root and for nodes of at least a quarter of the
  * references (the top of a lopsided tree: bmw-m6's first SBVH splits leave
  * 733,338 and 608,590 of 792,582 references on one side, and the other
@@ -327,7 +330,8 @@ uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bv
  * fills `left` and `right` (node's range in two non-empty parts, in order,
  * with their bounds), returning 1, or returns 0 to make a leaf. It is called
  * only for count >= 2 below the depth cap; it may spread its work over
- * `threads` threads (bvh_split_threads), with the result of one. */
+ * `threads` threads (the root: every build thread), with the result of
+ * one. */
 typedef int (*bvh_split_fn)(bvh_builder *b, const bvh_range *node, unsigned threads, bvh_range *left, bvh_range *right);
 /* Builds the subtree of at most BVH_EXACT_MAX references of range r under
  * `node` (at `depth`) by the exact SAH sweep, with the binned builder's leaf

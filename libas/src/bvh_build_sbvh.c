@@ -62,7 +62,10 @@
  * partition took 18 ms and its left child's 14 ms, mostly those faults). A
  * split gives back its node's array as it takes two, so about half of the
  * sides' pages are reused. At most SBVH_SPARE_MAX arrays wait, freed at the
- * end of the build. */
+ * end of the build. Only with more than one build thread: with one, whose
+ * frees malloc reuses by itself, the build was slower with spares (1.06 to
+ * 1.19 times its time before on staircase, bathroom and bmw-m6, 4 rounds;
+ * why was not found). */
 #define SBVH_SPARE_MIN_REFS 65536u  /* 2 MB */
 #define SBVH_SPARE_MAX 4u
 
@@ -93,6 +96,7 @@ typedef struct sbvh_ctx {
     bvh_ref *spare[SBVH_SPARE_MAX];   /* large arrays given back, for the next sides (under mem_lock) */
     uint32_t spare_cap[SBVH_SPARE_MAX];
     unsigned spare_count;
+    int recycle;                      /* keep spares: builds on more than one thread */
 } sbvh_ctx;
 
 /* A malloc'd reference array of room for at least cap references (*got:
@@ -125,7 +129,7 @@ static bvh_ref *block_acquire(sbvh_ctx *ctx, uint32_t cap, uint32_t *got)
 static void block_release(sbvh_ctx *ctx, bvh_ref *p, uint32_t cap)
 {
     if (!p) return;
-    if (ctx && cap >= SBVH_SPARE_MIN_REFS) {
+    if (ctx && ctx->recycle && cap >= SBVH_SPARE_MIN_REFS) {
         pthread_mutex_lock(&ctx->mem_lock);
         if (ctx->spare_count < SBVH_SPARE_MAX) {
             ctx->spare[ctx->spare_count] = p;
@@ -860,6 +864,7 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     const sbvh_task t = {&ctx, root, root_refs, b.ref_count, 1, b.ref_count, budget, 0};
     const unsigned threads = (unsigned)b.max_threads + 1;
     b.root_threads = threads > 256 ? 256 : threads;
+    ctx.recycle = threads > 1;
     if (threads < 2 || b.ref_count < 2 * BVH_PARALLEL_MIN_PRIMS || !as_task_pool_run(threads, sizeof t, &t, sbvh_run, NULL))
         sbvh_run(NULL, (void *)&t, NULL);
     if (atomic_load(&ctx.out_of_memory))
