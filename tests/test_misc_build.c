@@ -191,16 +191,12 @@ static void a_small_dense_cluster_in_a_large_scene_is_subdivided(void)
     uint64_t st = 11;
     const uint32_t n = 2001;
     float *p = malloc(sizeof(float) * 9 * n);
-    uint32_t *ix = malloc(sizeof(uint32_t) * 3 * n);
     for (uint32_t t = 0; t < n; ++t) {
         float c[3];
         for (int k = 0; k < 3; ++k) c[k] = t + 1 < n ? (float)ref_rand01(&st) : 99.5f;
         for (int v = 0; v < 9; ++v) p[9 * t + v] = c[v % 3] + 0.02f * (float)(ref_rand01(&st) - 0.5);
-        for (int v = 0; v < 3; ++v) ix[3 * t + v] = 3 * t + v;
     }
-    as_mesh_t *m = as_mesh_create(3 * n, p, n, ix);
-    free(p);
-    free(ix);
+    as_mesh_t *m = test_mesh_from_soup(p, n);
     as_build_args_t args;
     args_for(&args);
     as_structure_t *s = as_structure_build(m, &args);
