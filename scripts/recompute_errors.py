@@ -620,7 +620,11 @@ def shadow_rays(args, info, tris, present):
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     # The normal on the side the ray came from, so the offset leaves the surface toward the viewer.
     nrm *= np.where(np.sum(nrm * d, axis=1, keepdims=True) > 0, -1.0, 1.0)
-    start = p + args.offset * diag * nrm
+    # At least 4 float spacings of the hit point's largest coordinate, as
+    # as-trace does: far from the origin a fraction of the diagonal can be
+    # smaller than the rounding of the origin to float.
+    off = np.maximum(args.offset * diag, 4 * np.finfo(np.float32).eps * np.max(np.abs(p), axis=1, keepdims=True))
+    start = p + off * nrm
     orgs, dirs = [], []
     for L in lights:
         orgs.append(start)
@@ -838,7 +842,8 @@ def main(argv=None):
     r.add_argument("--seed", type=int, default=1, help="seed of --toward-vertices (default 1)")
     r.add_argument("--light", action="append", metavar="X,Y,Z", help="a point light (repeatable; default four)")
     r.add_argument("--offset", type=float, default=1e-4,
-                   help="shadow ray origins leave the surface by this fraction of the scene diagonal")
+                   help="shadow ray origins leave the surface by this fraction of the scene diagonal "
+                        "(at least 4 float spacings of the hit point)")
     c.error, r.error, t.error = usage_error(c), usage_error(r), usage_error(t)
     args = p.parse_args(argv)
     try:

@@ -10,7 +10,7 @@
  * With --gpu the rays are traced by the CUDA kernels (exit 77, skipped,
  * without a usable GPU); builds and the reference stay on the CPU.
  * Cases: watertight, moller_leaks, seam, signed_zero, grazing, range,
- * degenerate, flat, duplicates, planar, surface, bad_rays. */
+ * degenerate, flat, duplicates, planar, surface, surface_far, bad_rays. */
 #include "stiff_harness.h"
 
 #include <float.h>
@@ -346,6 +346,39 @@ static void rays_leaving_a_surface_do_not_rehit_it(void)
 
 /* tmin > tmax, zero direction, NaN or Inf in origin or direction: no hit
  * written, no hang, at most 2.5x a normal ray's time. */
+/* The same at the watertight suite's offsets, on its sphere (convex: a ray
+ * leaving its outside meets nothing): at 1e6 the float spacing is 1/16, larger
+ * than 1e-4 of the diagonal, so only the offset's floor of 4 spacings of the
+ * hit point keeps the origins off the surface. Every ray misses, in agreement
+ * with the double-precision reference. */
+static void rays_leaving_a_sphere_far_from_the_origin_miss(void)
+{
+    const double offsets[] = {0.0, 1e6, 1e7};
+    for (size_t k = 0; k < sizeof offsets / sizeof offsets[0]; ++k) {
+        as_stiff_args_t args;
+        as_stiff_args_default(&args);
+        args.offset = offsets[k];
+        as_stiff_case_data_t c;
+        if (!generate(AS_STIFF_SURFACE, &args, &c)) continue;
+        as_structure_t *s = build(c.mesh, "surface far");
+        if (s) {
+            const size_t n = c.ray_count;
+            as_hit_t *hits = trace(s, c.rays, n, 0, NULL);
+            size_t hit = 0;
+            for (size_t i = 0; i < n; ++i) hit += hits[i].prim != AS_NO_HIT;
+            fprintf(stderr, "  %s surface at %g: %zu rays leaving the sphere, %zu hit it\n", variant_name,
+                    offsets[k], n, hit);
+            CHECK(n > 1000);
+            CHECK_EQ_U64(hit, 0);
+            CHECK_EQ_U64(outcome_failures(&c, 0, n, hits), 0);
+            CHECK_EQ_U64(against_reference("surface far", c.mesh, s, c.rays, n), 0);
+            free(hits);
+            as_structure_release(s);
+        }
+        as_stiff_case_free(&c);
+    }
+}
+
 static void bad_rays_miss_quickly(void)
 {
     as_stiff_case_data_t c;
@@ -554,6 +587,7 @@ int main(int argc, char **argv)
     CASE("duplicates", duplicates_keep_depth_and_report_the_lowest_copy);
     CASE("planar", planar_quads_on_split_planes_are_hit);
     CASE("surface", rays_leaving_a_surface_do_not_rehit_it);
+    CASE("surface_far", rays_leaving_a_sphere_far_from_the_origin_miss);
     CASE("bad_rays", bad_rays_miss_quickly);
 #undef CASE
     TEST_EXIT();

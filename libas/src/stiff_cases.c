@@ -561,7 +561,7 @@ static as_mesh_t *surface(gen *g)
         if (!m) g->err = as_get_error();
     } else {
         double centre[3];
-        closed_mesh(g, 1, 0.0, 1.0, centre);
+        closed_mesh(g, 1, g->args->offset, watertight_edge(g->args->offset, g->args->edge), centre);
         m = finish_mesh(g, AS_STIFF_SURFACE);
     }
     if (!m) return NULL;
@@ -611,8 +611,10 @@ static as_mesh_t *surface(gen *g)
     for (size_t i = 0; i < ns && e == AS_OK && !g->oom; ++i) {
         const as_ray_t *r = &sec[i];
         const uint32_t first = prim_list(g, &hits[from[i]].prim, 1);
+        /* The suite's own sphere is convex: a ray leaving its outside meets
+         * nothing. Another mesh: at least not the triangle it leaves. */
         outcome_prims(g, ray(g, r->org[0], r->org[1], r->org[2], r->dir[0], r->dir[1], r->dir[2], r->tmax,
-                             AS_STIFF_EXPECT_NOT_PRIM, 0),
+                             src ? AS_STIFF_EXPECT_NOT_PRIM : AS_STIFF_EXPECT_MISS, 0),
                       first, 1);
         if (!g->oom) g->rays[g->nr - 1].tmin = r->tmin;
     }

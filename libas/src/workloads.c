@@ -4,6 +4,7 @@
 #include "structure.h"
 #include "bvh2_layout.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -92,6 +93,19 @@ static int hit_frame(const as_tri4_t *tri, const as_ray_t *ray, const as_hit_t *
     return 1;
 }
 
+/* The origin offset off the surface at hit point p: the requested distance,
+ * but at least 4 float spacings of p's largest coordinate. Rounding the
+ * offset origin to float moves it by up to about 0.87 spacing along the
+ * normal, so far from the origin (a scene at 1e6, where the spacing is
+ * 1/16) a fraction of the diagonal alone can land the origin back on the
+ * surface or behind it, and the ray re-hits its source or not by chance. */
+static double surface_offset(const double p[3], double offset)
+{
+    const double m = fmax(fabs(p[0]), fmax(fabs(p[1]), fabs(p[2])));
+    const double least = 4.0 * FLT_EPSILON * m;
+    return offset > least ? offset : least;
+}
+
 static double scene_diagonal(const as_structure_t *s)
 {
     const float *lo = s->meta.bounds_lo, *hi = s->meta.bounds_hi;
@@ -155,6 +169,7 @@ as_error_t as_rays_hemisphere(const as_structure_t *s, const as_ray_t *primary, 
         if (hits[i].prim == AS_NO_HIT || hits[i].prim >= s->meta.triangle_count || !map[hits[i].prim]) continue;
         double p[3], nrm[3];
         if (!hit_frame(map[hits[i].prim], &primary[i], &hits[i], p, nrm)) continue;
+        const double off = surface_offset(p, offset);
         /* An orthonormal basis around the normal (Duff et al. 2017). */
         const double sign = nrm[2] >= 0 ? 1.0 : -1.0;
         const double a = -1.0 / (sign + nrm[2]), bb = nrm[0] * nrm[1] * a;
@@ -167,7 +182,7 @@ as_error_t as_rays_hemisphere(const as_structure_t *s, const as_ray_t *primary, 
             const double x = r * cos(phi), y = r * sin(phi), z = sqrt(1.0 - r1 > 0 ? 1.0 - r1 : 0.0);
             as_ray_t *ray = &rays[n];
             for (int d = 0; d < 3; ++d) {
-                ray->org[d] = (float)(p[d] + offset * nrm[d]);
+                ray->org[d] = (float)(p[d] + off * nrm[d]);
                 ray->dir[d] = (float)(x * t1[d] + y * t2[d] + z * nrm[d]);
             }
             ray->tmin = 0.0f;
@@ -206,10 +221,11 @@ as_error_t as_rays_shadow(const as_structure_t *s, const as_ray_t *primary, cons
         if (hits[i].prim == AS_NO_HIT || hits[i].prim >= s->meta.triangle_count || !map[hits[i].prim]) continue;
         double p[3], nrm[3];
         if (!hit_frame(map[hits[i].prim], &primary[i], &hits[i], p, nrm)) continue;
+        const double off = surface_offset(p, offset);
         for (uint32_t l = 0; l < light_count; ++l) {
             as_ray_t *ray = &rays[n];
             for (int d = 0; d < 3; ++d) {
-                ray->org[d] = (float)(p[d] + offset * nrm[d]);
+                ray->org[d] = (float)(p[d] + off * nrm[d]);
                 ray->dir[d] = lights[3 * l + d] - ray->org[d];
             }
             /* The direction spans the whole way: the light is at t = 1. */
@@ -298,8 +314,9 @@ as_error_t as_rays_whitted_bounce(const as_structure_t *s, const as_ray_t *rays,
         if (hits[i].prim == AS_NO_HIT || hits[i].prim >= s->meta.triangle_count || !map[hits[i].prim]) continue;
         double p[3], n[3];
         if (!hit_frame(map[hits[i].prim], &rays[i], &hits[i], p, n)) continue;
-        const double above[3] = {p[0] + offset * n[0], p[1] + offset * n[1], p[2] + offset * n[2]};
-        const double below[3] = {p[0] - offset * n[0], p[1] - offset * n[1], p[2] - offset * n[2]};
+        const double off = surface_offset(p, offset);
+        const double above[3] = {p[0] + off * n[0], p[1] + off * n[1], p[2] + off * n[2]};
+        const double below[3] = {p[0] - off * n[0], p[1] - off * n[1], p[2] - off * n[2]};
         /* Hard shadows at every hit. */
         for (uint32_t l = 0; l < args.light_count; ++l) {
             as_ray_t *r = &sh[ns++];

@@ -668,7 +668,10 @@ typedef struct as_secondary_args {
                                     (AO default 0.1); 0: unbounded */
     float offset_fraction;       /* origin offset along the geometric normal,
                                     flipped to face the incoming ray, as a
-                                    fraction of the diagonal (default 1e-4) */
+                                    fraction of the diagonal (default 1e-4);
+                                    never less than 4 float spacings of the
+                                    hit point's largest coordinate, which
+                                    rounding the origin to float could undo */
     uint64_t seed;
 } as_secondary_args_t;
 void as_secondary_args_default(as_secondary_args_t *args);
@@ -841,8 +844,10 @@ typedef enum as_stiff_case {
     AS_STIFF_PLANAR_ON_SPLIT = 10,
     /* Rays leaving a surface: cosine-weighted hemisphere rays (unbounded)
      * from the hits of 200 x 200 camera rays, offset along the normal by
-     * 1e-4 of the scene diagonal (as_rays_hemisphere): none hits the
-     * triangle it leaves. */
+     * as_rays_hemisphere's default (1e-4 of the scene diagonal, at least 4
+     * float spacings of the hit point): none hits the triangle it leaves.
+     * On the suite's own mesh (the watertight sphere, at `offset`: convex)
+     * every ray misses; on `surface_mesh`, none hits its source. */
     AS_STIFF_SURFACE = 11,
     /* Ordinary rays over 20,000 random triangles, then as many copies with
      * tmin > tmax, a zero direction, or a NaN or Inf in the origin, the
@@ -867,10 +872,10 @@ typedef struct as_stiff_args {
                                     (the watertight meshes, the seam, the grazing
                                     plane and the planar quads are fixed; their
                                     rays, but the watertight ones, are drawn) */
-    double offset;               /* watertight cases: where the mesh lies (its
-                                    box's corner on every axis; the suite uses 0,
-                                    1e6 and 1e7; default 0) */
-    double edge;                 /* watertight cases: the lattice edge (the
+    double offset;               /* watertight and surface cases: where the mesh
+                                    lies (its box's corner on every axis; the
+                                    suite uses 0, 1e6 and 1e7; default 0) */
+    double edge;                 /* watertight and surface cases: the lattice edge (the
                                     sphere's radius is 4 of them); 0 (default):
                                     1 at offset 0, 16 at 1e6, 128 at 1e7, else the
                                     smallest power of two of at least 256 float
