@@ -1,0 +1,29 @@
+set -u
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,glob,os
+os.makedirs('/tmp/b',exist_ok=True)
+for f in glob.glob('.dev/z5/*.xz'):
+    d='/tmp/b/'+os.path.basename(f)[:-3]; open(d,'wb').write(lzma.open(f).read()); os.chmod(d,0o755)
+"
+B=/tmp/b; mkdir -p /work && ln -sfn $PWD /work/wt-dev
+date -u; nvidia-smi --query-gpu=name,driver_version --format=csv,noheader; echo "cores $(nproc); tools at $(cat .dev/commit5)"
+S0=$(date +%s); el(){ echo $(( $(date +%s) - S0 )); }
+for t in test_stiff test_stiff_more; do
+echo "== $t on the GPU, every variant (at $(el) s)"
+for v in "bvh sah bvh2-child-bounds" "bvh midcut bvh2-child-bounds" "bvh sweep bvh2-child-bounds" "bvh sbvh bvh2-child-bounds" "bvh sah bvh2-own-bounds" "bvh sah cwbvh" "bvh sbvh cwbvh" "kd midcut kd-standard" "kd sah kd-standard" "kd midcut kd-ropes" "kd sah kd-ropes" "bih bih bih" "octree octree octree" "grid grid grid"; do
+  timeout 100 $B/$t --gpu $v > /tmp/st.log 2>&1; rc=$?
+  echo "$t --gpu $v: exit $rc, $(grep -c '^ok' /tmp/st.log) ok, $(grep -c '^FAIL' /tmp/st.log) FAIL"; grep -E "^FAIL" -B3 /tmp/st.log | head -12
+done; done
+echo "== GPU = CPU, every layout (at $(el) s)"
+timeout 120 $B/test_gpu_agreement > /tmp/ag.log 2>&1; echo "test_gpu_agreement exit $?: $(grep -c ' 0 differ' /tmp/ag.log) sets with 0 differ, $(grep -cE ' [1-9][0-9]* differ' /tmp/ag.log) with differences"
+grep -E " [1-9][0-9]* differ|FAIL|failed" /tmp/ag.log | head
+cp /tmp/ag.log $OUT/agreement-bunny.log
+echo "== scenes not in ../shared/scenes (at $(el) s)"
+L=$(( 575 - $(el) ))
+timeout $L python3 scripts/other_scenes.py /tmp/os --bin $B --device gpu 2>/tmp/os.err; echo "other_scenes exit $?"
+grep -vE "^\+ " /tmp/os.err | tail -20
+mkdir -p /tmp/osr; cp /tmp/os/summary.md /tmp/os/*-protocol.json /tmp/osr/ 2>/dev/null
+for d in /tmp/os/study/*/; do n=$(basename $d); cp $d/results.json /tmp/osr/study-$n.json 2>/dev/null; cp $d/table.md /tmp/osr/study-$n-table.md; cp $d/report.md /tmp/osr/study-$n-report.md 2>/dev/null; done
+ls /tmp/os/study/*/ | head -30
+cd /tmp && tar czf $OUT/os.tar.gz osr; date -u; echo "total $(el) s"
