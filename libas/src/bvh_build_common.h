@@ -53,7 +53,7 @@ typedef struct bvh_builder {
     bvh_box root_box;
     bvh_box root_cbox;        /* of lo + hi (see bvh_refs_centroid2_box) */
     unsigned root_threads;    /* threads that may split the root together */
-    bvh_tmp_node *nodes;
+    bvh_tmp_node *nodes;      /* node_capacity; both arrays from as_block_take, given back by bvh_builder_free */
     atomic_uint_fast64_t node_next;
     uint64_t node_capacity;
     int max_threads;
@@ -163,10 +163,14 @@ unsigned bvh_split_threads(const bvh_builder *b, struct as_task_pool *pool, cons
 
 /* Checks the arguments shared by every BVH builder, fills the references
  * (degenerate triangles left out) and allocates node_capacity_per_ref x
- * references + 3 tmp nodes. */
+ * references + 3 tmp nodes. Both arrays are blocks that earlier builds gave
+ * back (as_block_take) when one fits. */
 as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_build_args_t *args,
                             uint64_t node_capacity_per_ref);
 void bvh_builder_free(bvh_builder *b);
+/* Replaces the tmp node array by one of `capacity` nodes (its contents are
+ * lost); the error is set when out of memory. */
+as_error_t bvh_builder_renew_nodes(bvh_builder *b, uint64_t capacity);
 
 static inline bvh_box bvh_box_empty(void)
 {

@@ -67,6 +67,10 @@
  * 1.19 times its time before on staircase, bathroom and bmw-m6, 4 rounds;
  * why was not found). */
 #define SBVH_SPARE_MIN_REFS 65536u  /* 2 MB */
+/* Arrays of at least this many references (4 MB) are blocks that earlier
+ * builds of the process gave back (as_block_take) when one fits, and go
+ * back to them (as_block_give). */
+#define SBVH_BLOCK_MIN_REFS 131072u
 #define SBVH_SPARE_MAX 4u
 
 typedef struct sbvh_chunk {
@@ -121,6 +125,9 @@ static bvh_ref *block_acquire(sbvh_ctx *ctx, uint32_t cap, uint32_t *got)
         }
         pthread_mutex_unlock(&ctx->mem_lock);
     }
+    /* Large ones from the blocks earlier builds gave back (as_block_take):
+     * at the top of the tree a fresh side faults in a page per 4 KB. */
+    if (cap >= SBVH_BLOCK_MIN_REFS) return as_block_take(sizeof(bvh_ref) * (size_t)cap, 0, "SBVH references");
     return malloc(sizeof(bvh_ref) * (size_t)cap);
 }
 
@@ -138,7 +145,8 @@ static void block_release(sbvh_ctx *ctx, bvh_ref *p, uint32_t cap)
         }
         pthread_mutex_unlock(&ctx->mem_lock);
     }
-    free(p);
+    if (p && cap >= SBVH_BLOCK_MIN_REFS) as_block_give(p, sizeof(bvh_ref) * (size_t)cap, 0);
+    else free(p);
 }
 
 static sbvh_mem *mem_acquire(sbvh_ctx *ctx)
@@ -178,7 +186,7 @@ static void mem_free_all(sbvh_ctx *ctx)
         free(m);
     }
     ctx->all_mems = ctx->free_mems = NULL;
-    for (unsigned i = 0; i < ctx->spare_count; ++i) free(ctx->spare[i]);
+    for (unsigned i = 0; i < ctx->spare_count; ++i) block_release(NULL, ctx->spare[i], ctx->spare_cap[i]);
     ctx->spare_count = 0;
 }
 
@@ -839,12 +847,10 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     if (extra > (double)(INT32_MAX / 2) - (double)b.ref_count) extra = (double)(INT32_MAX / 2) - (double)b.ref_count;
     if (extra < 0) extra = 0;
     const uint64_t budget = (uint64_t)extra;
-    free(b.nodes);
-    b.node_capacity = 2 * ((uint64_t)b.ref_count + budget) + 3 + BVH_NODE_SLACK;
-    b.nodes = as_malloc(sizeof(bvh_tmp_node) * b.node_capacity, "SBVH build nodes");
-    if (!b.nodes) {
+    err = bvh_builder_renew_nodes(&b, 2 * ((uint64_t)b.ref_count + budget) + 3 + BVH_NODE_SLACK);
+    if (err != AS_OK) {
         bvh_builder_free(&b);
-        return as_get_error();
+        return err;
     }
     /* The root task owns the references from here on, as every task owns
      * its own. */

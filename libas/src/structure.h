@@ -16,6 +16,8 @@ typedef struct as_section {
     uint32_t flags;               /* ASF_SECTION_* as in the file */
     const void *data;             /* raw bytes, 64-byte aligned */
     void *owned;                  /* freed on release when not NULL */
+    size_t give_bytes;            /* not 0: owned came from as_aligned_alloc(give_bytes) and goes back
+                                     to as_block_give on release, for the next build */
     uint64_t bytes, count;
     uint32_t stride;
     int file_index;               /* index in the file's table, -1 if built */
@@ -56,8 +58,23 @@ struct as_tri4;
 const struct as_tri4 **as_structure_triangles_by_prim(const as_structure_t *s);
 
 /* 64-byte aligned allocation for section data (from 4 MB: 2 MB aligned and
- * marked for transparent huge pages); free with free(). */
+ * marked for transparent huge pages, and taken from the blocks earlier
+ * builds gave back when one fits: as_block_take); free with free(), or
+ * give back with as_block_give(p, bytes, 1). */
 void *as_aligned_alloc(size_t bytes, const char *what);
+
+/* A block of `bytes` for a build's arrays, from the large blocks earlier
+ * builds of the process gave back (as_block_give) when one holds `bytes`
+ * and is at most twice as large, else fresh (huge: 2 MB aligned and marked
+ * for transparent huge pages, as as_aligned_alloc). Its contents are
+ * undefined. NULL with the error set when out of memory. Thread-safe. Any
+ * block may be freed with free() instead of given back. */
+void *as_block_take(size_t bytes, int huge, const char *what);
+/* Gives back a block from as_block_take or as_aligned_alloc of at least
+ * `bytes` (and of the same `huge`): kept for a later as_block_take when it
+ * is 4 MB or more (at most 16 blocks and 512 MB, the oldest freed first),
+ * else freed. NULL is ignored. Thread-safe. */
+void as_block_give(void *p, size_t bytes, int huge);
 
 /* What libas knows of one stored layout: its sections, and how to validate,
  * describe and trace it. One table per layout, in the layout's own file
