@@ -33,7 +33,8 @@ W=${W:-1920} H=${H:-1080}
 mkdir -p "$OUT" || exit 2
 case $CAMERA in
 -) CAM_ARGS= ;;
-*@*@*@*) CAM_ARGS="--eye $(echo "$CAMERA" | cut -d@ -f1) --target $(echo "$CAMERA" | cut -d@ -f2) --up $(echo "$CAMERA" | cut -d@ -f3) --fov $(echo "$CAMERA" | cut -d@ -f4)" ;;
+# --eye=X: a value that starts with a minus sign is not taken for an option.
+*@*@*@*) CAM_ARGS="--eye=$(echo "$CAMERA" | cut -d@ -f1) --target=$(echo "$CAMERA" | cut -d@ -f2) --up=$(echo "$CAMERA" | cut -d@ -f3) --fov=$(echo "$CAMERA" | cut -d@ -f4)" ;;
 *) CAM_ARGS="--camera $CAMERA" ;;
 esac
 status=0
