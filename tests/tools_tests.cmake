@@ -59,6 +59,13 @@ add_test(NAME tools_as_study_other_scene
   COMMAND ${CMAKE_CURRENT_SOURCE_DIR}/cli/check_study_other_scene.py $<TARGET_FILE_DIR:as-build>
           ${PROJECT_SOURCE_DIR} ${CMAKE_CURRENT_BINARY_DIR}/as-study-other-out)
 set_tests_properties(tools_as_study_other_scene PROPERTIES LABELS tools TIMEOUT 300)
+# scripts/other_scenes.py, which the GPU host runs in full (hills, a city of
+# 25,000 boxes, the watertight sphere at 1e6): here its --quick form on the
+# CPU with 300 boxes; exit 0 only when every verified ray agreed.
+add_test(NAME scripts_other_scenes_quick
+  COMMAND ${PROJECT_SOURCE_DIR}/scripts/other_scenes.py ${CMAKE_CURRENT_BINARY_DIR}/other-scenes-out
+          --bin $<TARGET_FILE_DIR:as-build> --device cpu --quick --boxes 300)
+set_tests_properties(scripts_other_scenes_quick PROPERTIES LABELS tools TIMEOUT 300)
 # scripts/ceiling.py: node visits per second against the H100's ceilings, on
 # a study folder whose figures are known.
 add_test(NAME tools_ceiling_table
