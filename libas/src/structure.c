@@ -109,6 +109,20 @@ void as_block_give(void *p, size_t bytes, int huge)
     for (unsigned i = 0; i < nd; ++i) free(drop[i]);
 }
 
+size_t as_release_cached_memory(void)
+{
+    void *drop[AS_BLOCKS_KEPT];
+    pthread_mutex_lock(&kept.lock);
+    const unsigned nd = kept.n;
+    const size_t freed = kept.total;
+    for (unsigned i = 0; i < nd; ++i) drop[i] = kept.e[i].p;
+    kept.n = 0;
+    kept.total = 0;
+    pthread_mutex_unlock(&kept.lock);
+    for (unsigned i = 0; i < nd; ++i) free(drop[i]);
+    return freed;
+}
+
 void *as_aligned_alloc(size_t bytes, const char *what)
 {
     if (bytes >= AS_BLOCK_MIN_BYTES) return as_block_take(bytes, 1, what);

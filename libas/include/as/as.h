@@ -289,7 +289,16 @@ as_structure_t *as_structure_load(const char *path, const as_load_args_t *args);
 as_structure_t *as_structure_load_memory(const void *data, size_t size, const char *name,
                                          const as_load_args_t *args);
 
+/* Releases the structure. Its large arrays (4 MB and more) that a build
+ * made go back to a cache of the process, with those that builds used for
+ * their work, so that the next build does not fault in fresh pages: at most
+ * 16 blocks and 512 MB, the oldest freed first when more come. */
 void as_structure_release(as_structure_t *s);
+
+/* Frees every block of that cache now (as malloc_trim would) and returns the
+ * bytes freed; 0 when it was empty. Thread-safe: a build running meanwhile
+ * keeps what it took and gives it back to the cache when it ends. */
+size_t as_release_cached_memory(void);
 
 /* A new structure with the same tree in another layout of its kind: the
  * BVH's child-bounds and own-bounds layouts either way, either of them into
