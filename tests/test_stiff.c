@@ -344,9 +344,7 @@ static void rays_leaving_a_surface_do_not_rehit_it(void)
     as_mesh_release(m);
 }
 
-/* tmin > tmax, zero direction, NaN or Inf in origin or direction: no hit
- * written, no hang, at most 2.5x a normal ray's time. */
-/* The same at the watertight suite's offsets, on its sphere (convex: a ray
+/* Rays leaving a surface at the watertight suite's offsets, on its sphere (convex: a ray
  * leaving its outside meets nothing): at 1e6 the float spacing is 1/16, larger
  * than 1e-4 of the diagonal, so only the offset's floor of 4 spacings of the
  * hit point keeps the origins off the surface. Every ray misses, in agreement
@@ -379,6 +377,8 @@ static void rays_leaving_a_sphere_far_from_the_origin_miss(void)
     }
 }
 
+/* tmin > tmax, zero direction, NaN or Inf in origin or direction: no hit
+ * written, no hang, at most 2.5x a normal ray's time. */
 static void bad_rays_miss_quickly(void)
 {
     as_stiff_case_data_t c;

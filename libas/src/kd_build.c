@@ -481,7 +481,7 @@ static void emit(const kd_tmp *t, kd_emit *e)
         e->nodes[me].word0 = (uint32_t)e->prim_next;
         e->nodes[me].word1 = (e->leaf_next++ << 2) | AS_KD_LEAF_TAG;
         e->prim[e->prim_next++] = t->count;
-        memcpy(e->prim + e->prim_next, t->ids, sizeof(uint32_t) * t->count);
+        if (t->count) memcpy(e->prim + e->prim_next, t->ids, sizeof(uint32_t) * t->count); /* ids may be NULL */
         e->prim_next += t->count;
         return;
     }

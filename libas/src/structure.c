@@ -43,7 +43,9 @@ static void *fresh_block(size_t bytes, int huge)
  * (57 MB reserved on bathroom) faulted in about 7,200 pages in every build.
  * Embree keeps its allocator's blocks in the same way when a scene is
  * committed again. At most AS_BLOCKS_KEPT blocks and AS_BLOCKS_KEPT_BYTES
- * bytes are kept, the oldest freed first; blocks under AS_BLOCK_MIN_BYTES
+ * bytes are kept, counted at the sizes given back (a reused block may be up
+ * to twice its taker's request, which is what comes back), the oldest freed
+ * first; blocks under AS_BLOCK_MIN_BYTES
  * are left to malloc, which reuses them by itself. */
 #define AS_BLOCKS_KEPT 16
 #define AS_BLOCKS_KEPT_BYTES ((size_t)512 << 20)

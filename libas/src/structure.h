@@ -72,7 +72,8 @@ void *as_aligned_alloc(size_t bytes, const char *what);
 void *as_block_take(size_t bytes, int huge, const char *what);
 /* Gives back a block from as_block_take or as_aligned_alloc of at least
  * `bytes` (and of the same `huge`): kept for a later as_block_take when it
- * is 4 MB or more (at most 16 blocks and 512 MB, the oldest freed first),
+ * is 4 MB or more (at most 16 blocks and 512 MB counted at the sizes given
+ * back, which may be half a reused block's; the oldest freed first),
  * else freed. NULL is ignored. Thread-safe. */
 void as_block_give(void *p, size_t bytes, int huge);
 

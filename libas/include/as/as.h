@@ -292,12 +292,18 @@ as_structure_t *as_structure_load_memory(const void *data, size_t size, const ch
 /* Releases the structure. Its large arrays (4 MB and more) that a build
  * made go back to a cache of the process, with those that builds used for
  * their work, so that the next build does not fault in fresh pages: at most
- * 16 blocks and 512 MB, the oldest freed first when more come. */
+ * 16 blocks and 512 MB as the builds asked for them, the oldest freed first
+ * when more come. A block is reused for a request of half its size or more
+ * and counted at the request's size, so the cache may hold up to twice that
+ * (about 1 GB). */
 void as_structure_release(as_structure_t *s);
 
-/* Frees every block of that cache now (as malloc_trim would) and returns the
- * bytes freed; 0 when it was empty. Thread-safe: a build running meanwhile
- * keeps what it took and gives it back to the cache when it ends. */
+/* Frees every block of that cache now and returns the bytes it counted
+ * (as above: what the builds asked for; the blocks may be up to twice as
+ * large); 0 when it was empty. Blocks go back with free(), so malloc
+ * decides when the system gets them (at once for those it mapped).
+ * Thread-safe: a build running meanwhile keeps what it took and gives it
+ * back to the cache when it ends. */
 size_t as_release_cached_memory(void);
 
 /* A new structure with the same tree in another layout of its kind: the
@@ -678,7 +684,7 @@ typedef struct as_secondary_args {
     float offset_fraction;       /* origin offset along the geometric normal,
                                     flipped to face the incoming ray, as a
                                     fraction of the diagonal (default 1e-4);
-                                    never less than 4 float spacings of the
+                                    never less (0 included) than 4 float spacings of the
                                     hit point's largest coordinate, which
                                     rounding the origin to float could undo */
     uint64_t seed;
