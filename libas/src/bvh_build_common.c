@@ -414,11 +414,7 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
 
 /* ---- one node's work on several threads (bvh_split_threads) */
 
-/* A node's references in pieces that the threads of a split take in turn
- * from a shared counter, so that a helper thread which gets no core (its
- * build thread's partner is busy with a task of its own) delays nothing: the
- * others take its pieces. About 8 per thread, of at least 16,384. */
-static uint32_t piece_count(uint32_t count, unsigned threads)
+uint32_t bvh_piece_count(uint32_t count, unsigned threads)
 {
     uint32_t n = 8 * threads;
     if (n > count / 16384) n = count / 16384;
@@ -477,7 +473,7 @@ bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, c
     j.refs = refs;
     j.count = count;
     j.nb = nb;
-    j.pieces = piece_count(count, threads);
+    j.pieces = bvh_piece_count(count, threads);
     atomic_init(&j.next, 0);
     j.vcmin = v4f_load(cmin);
     j.vscale = v4f_load(scale);
@@ -583,8 +579,10 @@ int bvh_share_task(bvh_builder *b, as_task_pool *pool, const void *task)
 unsigned bvh_split_threads(const bvh_builder *b, as_task_pool *pool, const bvh_pending_stack *s, uint32_t count,
                            int root)
 {
-    if (count < BVH_SPLIT_MT_MIN_PRIMS || !pool) return root ? b->root_threads : 1;
-    if (root || count >= b->ref_count / 4) return b->root_threads;
+    if (count < BVH_SPLIT_MT_MIN_PRIMS) return 1;
+    if (root) return b->root_threads;
+    if (!pool) return 1;
+    if (count >= b->ref_count / 4) return b->root_threads;
     if (s->next < s->n) return 1;
     const unsigned idle = as_task_pool_idle(pool);
     return idle + 1 < b->root_threads ? idle + 1 : b->root_threads;
@@ -946,7 +944,7 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
      * holds one entry per level. */
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->range.count <= 1 ||
         t->depth + 1 >= b->depth_limit ||
-        !ctx->split(b, &t->range, t->depth == 0 ? b->root_threads : 1, &l, &r) ||
+        !ctx->split(b, &t->range, t->depth == 0 ? bvh_split_threads(b, pool, NULL, t->range.count, 1) : 1, &l, &r) ||
         !bvh_local_pair(loc, &ln, &rn)) {
         bvh_local_leaf(loc, t->node, b->refs + t->range.first, t->range.count);
         return;

@@ -149,17 +149,24 @@ void bvh_pending_offer(bvh_builder *b, struct as_task_pool *pool, bvh_pending_st
 /* How many threads may split an SBVH node of `count` references together
  * (the in-place builders split only the root on several threads: binned SAH
  * with these rules was slower with two threads, 1.09 and 1.12 times its time
- * before on bathroom and bmw-m6 in 5 interleaved rounds): every
- * build thread for the root and for nodes of at least a quarter of the
+ * before on bathroom and bmw-m6 in 5 interleaved rounds): 1 for a node of
+ * fewer than BVH_SPLIT_MT_MIN_PRIMS, where threads would cost more than they
+ * save; every build thread for the root (`s` is not read then) and for nodes
+ * of at least a quarter of the
  * references (the top of a lopsided tree: bmw-m6's first SBVH splits leave
  * 733,338 and 608,590 of 792,582 references on one side, and the other
  * thread, done with the small side, waited 24-28 ms at each); for another
- * node of at least BVH_SPLIT_MT_MIN_PRIMS, 1 + the threads of the pool that
- * wait for work when the task has nothing left to offer them; else 1. The
+ * node, 1 + the threads of the pool that wait for work when the task has
+ * nothing left to offer them; else 1. The
  * helpers take the node's work in pieces from a shared counter, so one
  * that gets no core (the other build threads being busy) delays nothing. */
 unsigned bvh_split_threads(const bvh_builder *b, struct as_task_pool *pool, const bvh_pending_stack *s, uint32_t count,
                            int root);
+/* A node's references in pieces that the threads of a split take in turn
+ * from a shared counter, so that a helper thread which gets no core (its
+ * build thread's partner is busy with a task of its own) delays nothing: the
+ * others take its pieces. About 8 per thread, of at least 16,384. */
+uint32_t bvh_piece_count(uint32_t count, unsigned threads);
 
 /* Checks the arguments shared by every BVH builder, fills the references
  * (degenerate triangles left out) and allocates node_capacity_per_ref x

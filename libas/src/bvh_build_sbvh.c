@@ -429,9 +429,8 @@ static void spatial_bins_merge(spatial_bins *to, const spatial_bins *from, uint3
     }
 }
 
-/* The node's references in pieces taken in turn from a shared counter (see
- * piece_count in bvh_build_common.c): a helper thread without a core
- * delays nothing. */
+/* The node's references in pieces taken in turn from a shared counter
+ * (bvh_piece_count): a helper thread without a core delays nothing. */
 typedef struct par_spatial_job {
     const bvh_builder *b;
     const spatial_frame *f;
@@ -501,7 +500,7 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
         j.f = &fr;
         j.refs = refs;
         j.count = count;
-        j.pieces = 8 * threads < count / 16384 ? 8 * threads : (count / 16384 ? count / 16384 : 1);
+        j.pieces = bvh_piece_count(count, threads);
         atomic_init(&j.next, 0);
         j.bins = many;
         as_parallel_run(threads, par_spatial, &j);

@@ -23,10 +23,13 @@
  * more huge pages at once than the kernel had ready. */
 #define AS_HUGE_PAGE ((size_t)2 << 20)
 
+/* What a huge block of `bytes` really takes: whole 2 MB pages. */
+static size_t huge_rounded(size_t bytes) { return (bytes + AS_HUGE_PAGE - 1) / AS_HUGE_PAGE * AS_HUGE_PAGE; }
+
 static void *fresh_block(size_t bytes, int huge)
 {
     if (!huge) return malloc(bytes);
-    const size_t rounded = (bytes + AS_HUGE_PAGE - 1) / AS_HUGE_PAGE * AS_HUGE_PAGE;
+    const size_t rounded = huge_rounded(bytes);
     void *p = aligned_alloc(AS_HUGE_PAGE, rounded);
 #ifdef MADV_HUGEPAGE
     if (p) (void)madvise(p, rounded, MADV_HUGEPAGE);
@@ -92,7 +95,7 @@ void as_block_give(void *p, size_t bytes, int huge)
         free(p);
         return;
     }
-    if (huge) bytes = (bytes + AS_HUGE_PAGE - 1) / AS_HUGE_PAGE * AS_HUGE_PAGE; /* what fresh_block took */
+    if (huge) bytes = huge_rounded(bytes); /* what fresh_block took */
     void *drop[AS_BLOCKS_KEPT + 1];
     unsigned nd = 0;
     pthread_mutex_lock(&kept.lock);
