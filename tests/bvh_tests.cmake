@@ -13,3 +13,5 @@ endforeach()
 # GPU hits equal CPU hits (skips without a GPU).
 as_add_test(test_gpu_agreement SOURCES test_gpu_agreement.c LABELS gpu)
 as_add_test(test_verify SOURCES test_verify.c LABELS bvh)
+# The builders' threads (task pool and parallel steps).
+as_add_test(test_task_pool SOURCES test_task_pool.c LABELS bvh)

@@ -170,6 +170,48 @@ static void degenerate_means_exactly_zero_cross_product_or_repeated_index(void)
     as_mesh_release(m);
 }
 
+/* Builders count and skip zero-area triangles by ranges of the mesh's bits:
+ * a range's count is the number of triangles in it that the per-triangle
+ * test calls degenerate, whatever its ends (word boundaries included). */
+static void degenerate_range_counts_match_the_triangles(void)
+{
+    enum { N = 300 };
+    float pos[3 * 4] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 2, 0, 0};
+    uint32_t idx[3 * N];
+    uint32_t x = 12345;
+    for (uint32_t i = 0; i < N; ++i) {
+        x = x * 1103515245u + 12345u;
+        const int zero = (x >> 16) % 3 == 0; /* about a third: collinear 0, 1, 3 */
+        idx[3 * i] = 0;
+        idx[3 * i + 1] = 1;
+        idx[3 * i + 2] = zero ? 3 : 2;
+    }
+    as_mesh_t *m = as_mesh_create(4, pos, N, idx);
+    CHECK(m != NULL);
+    if (!m) return;
+    const uint32_t ends[] = {0, 1, 2, 63, 64, 65, 127, 128, 129, 200, 255, 256, 299, 300};
+    const size_t ne = sizeof ends / sizeof ends[0];
+    uint32_t total = 0;
+    for (uint32_t i = 0; i < N; ++i) total += (uint32_t)as_mesh_triangle_is_degenerate(m, i);
+    as_mesh_info_t info;
+    as_mesh_get_info(m, &info);
+    CHECK_EQ_INT(info.degenerate_count, total);
+    CHECK(total > N / 5 && total < N / 2);
+    int wrong = 0;
+    for (size_t a = 0; a < ne; ++a)
+        for (size_t b = a; b < ne; ++b) {
+            uint32_t expect = 0;
+            for (uint32_t i = ends[a]; i < ends[b]; ++i) expect += (uint32_t)as_mesh_triangle_is_degenerate(m, i);
+            if (as_mesh_degenerate_in_range(m, ends[a], ends[b]) != expect) {
+                fprintf(stderr, "     [%u, %u): %u degenerate, range count %u\n", ends[a], ends[b], expect,
+                        as_mesh_degenerate_in_range(m, ends[a], ends[b]));
+                wrong++;
+            }
+        }
+    CHECK_EQ_INT(wrong, 0);
+    as_mesh_release(m);
+}
+
 static void hash_chains_positions_then_indices(void)
 {
     const uint32_t a[] = {0, 1, 2}, b[] = {0, 2, 1};
@@ -595,6 +637,7 @@ int main(int argc, char **argv)
     RUN_TEST(create_rejects_null_arrays);
     RUN_TEST(release_and_accessors_accept_null);
     RUN_TEST(degenerate_means_exactly_zero_cross_product_or_repeated_index);
+    RUN_TEST(degenerate_range_counts_match_the_triangles);
     RUN_TEST(hash_chains_positions_then_indices);
     RUN_TEST(bounds_cover_referenced_vertices_only);
     RUN_TEST(import_refuses_missing_file_as_file_not_found);

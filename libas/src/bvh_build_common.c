@@ -31,10 +31,9 @@ static void init_count(void *user, unsigned c, unsigned n)
 {
     init_job *job = user;
     const as_mesh_t *mesh = job->b->mesh;
-    uint32_t first, end, k = 0;
+    uint32_t first, end;
     chunk_range(mesh->triangle_count, c, n, &first, &end);
-    for (uint32_t i = first; i < end; ++i) k += !as_mesh_triangle_is_degenerate(mesh, i);
-    job->count[c] = k;
+    job->count[c] = end - first - as_mesh_degenerate_in_range(mesh, first, end);
 }
 
 static void init_fill(void *user, unsigned c, unsigned n)
@@ -88,15 +87,16 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
     pthread_mutex_init(&b->progress_lock, NULL);
 
     /* Zero-area triangles can never be hit: they stay in the mesh (and keep
-     * their index) but not in the structure. Counting and filling run on
-     * every build thread over contiguous chunks, so the references keep
-     * the source order. */
+     * their index) but not in the structure. Filling runs on every build
+     * thread over contiguous chunks, so the references keep the source
+     * order. */
     init_job job;
     memset(&job, 0, sizeof job);
     job.b = b;
     job.chunks = mesh->triangle_count >= 65536 ? (unsigned)b->max_threads + 1 : 1;
     if (job.chunks > 256) job.chunks = 256;
-    as_parallel_run(job.chunks, init_count, &job);
+    /* The mesh's bits count the degenerate triangles: no thread needed. */
+    for (unsigned c = 0; c < job.chunks; ++c) init_count(&job, c, job.chunks);
     uint32_t n = 0;
     for (unsigned c = 0; c < job.chunks; ++c) {
         job.offset[c] = n;
@@ -576,16 +576,12 @@ int bvh_share_task(bvh_builder *b, as_task_pool *pool, const void *task)
     return as_task_pool_push(pool, task);
 }
 
-unsigned bvh_split_threads(const bvh_builder *b, as_task_pool *pool, const bvh_pending_stack *s, uint32_t count,
-                           int root)
+unsigned bvh_split_threads(const bvh_builder *b, uint32_t count)
 {
-    if (count < BVH_SPLIT_MT_MIN_PRIMS) return 1;
-    if (root) return b->root_threads;
-    if (!pool) return 1;
-    if (count >= b->ref_count / 4) return b->root_threads;
-    if (s->next < s->n) return 1;
-    const unsigned idle = as_task_pool_idle(pool);
-    return idle + 1 < b->root_threads ? idle + 1 : b->root_threads;
+    /* Inside the pool a step's pieces go to whichever threads are idle
+     * while it runs (as_parallel_run), so asking for every thread costs
+     * nothing when they are busy with other subtrees. */
+    return count < BVH_SPLIT_MT_MIN_PRIMS ? 1 : b->root_threads;
 }
 
 void bvh_pending_offer(bvh_builder *b, as_task_pool *pool, bvh_pending_stack *s)
@@ -934,7 +930,7 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
     bvh_builder *b = ctx->b;
     bvh_pending_offer(b, pool, pend);
     if (t->range.count <= b->exact_max && !atomic_load_explicit(&b->cancelled, memory_order_relaxed)) {
-        bvh_build_exact_subtree(b, loc, t->node, &t->range, t->depth);
+        bvh_build_exact_subtree(b, loc, t->node, b->refs + t->range.first, t->range.count, &t->range.box, t->depth);
         return;
     }
     b->nodes[t->node].box = t->range.box;
@@ -944,7 +940,7 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
      * holds one entry per level. */
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->range.count <= 1 ||
         t->depth + 1 >= b->depth_limit ||
-        !ctx->split(b, &t->range, t->depth == 0 ? bvh_split_threads(b, pool, NULL, t->range.count, 1) : 1, &l, &r) ||
+        !ctx->split(b, &t->range, bvh_split_threads(b, t->range.count), &l, &r) ||
         !bvh_local_pair(loc, &ln, &rn)) {
         bvh_local_leaf(loc, t->node, b->refs + t->range.first, t->range.count);
         return;
@@ -1046,37 +1042,25 @@ static void set_child_box(as_bvh2_node_t *o, int which, const bvh_box *bx)
     }
 }
 
-/* The walk only lays out the leaves' source indices; their vertices are
- * filled in afterwards on every thread (fill_tris). */
+/* The walk writes each leaf's triangles as it reaches the leaf: the tasks
+ * below the top of the tree write their own, so the vertices are gathered
+ * on every thread with no second pass over the section. */
 static int32_t emit_leaf(flatten_state *st, const bvh_tmp_node *t)
 {
     const uint32_t start = st->tri_count;
-    for (uint32_t i = 0; i < t->count; ++i) st->tris[st->tri_count++].v0.w = as_uint_as_float(t->refs[i].id);
-    if (t->count) st->leaf_count++; /* the empty sibling of a one-leaf tree is no leaf */
-    return ~(int32_t)start;
-}
-
-typedef struct fill_job {
-    const as_mesh_t *mesh;
-    as_tri4_t *tris;
-    uint32_t count;
-} fill_job;
-
-static void fill_tris(void *user, unsigned c, unsigned n)
-{
-    const fill_job *job = user;
-    const float *p = job->mesh->positions;
-    uint32_t first, end;
-    chunk_range(job->count, c, n, &first, &end);
-    for (uint32_t k = first; k < end; ++k) {
-        as_tri4_t *o = &job->tris[k];
-        const uint32_t id = as_float_as_uint(o->v0.w);
-        const uint32_t *ix = job->mesh->indices + 3 * (size_t)id;
+    const as_mesh_t *mesh = st->b->mesh;
+    const float *p = mesh->positions;
+    for (uint32_t i = 0; i < t->count; ++i) {
+        const uint32_t id = t->refs[i].id;
+        const uint32_t *ix = mesh->indices + 3 * (size_t)id;
         const float *a = p + 3 * (size_t)ix[0], *bb = p + 3 * (size_t)ix[1], *cc = p + 3 * (size_t)ix[2];
-        o->v0 = (as_f4_t){a[0], a[1], a[2], o->v0.w};
+        as_tri4_t *o = &st->tris[st->tri_count++];
+        o->v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(id)};
         o->v1 = (as_f4_t){bb[0], bb[1], bb[2], 0.0f};
         o->v2 = (as_f4_t){cc[0], cc[1], cc[2], 0.0f};
     }
+    if (t->count) st->leaf_count++; /* the empty sibling of a one-leaf tree is no leaf */
+    return ~(int32_t)start;
 }
 
 static double box_area(const bvh_box *bx)
@@ -1308,8 +1292,6 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
                             (unsigned long long)st.out_count, st.tri_count, (unsigned long long)inner,
                             (unsigned long long)refs);
     }
-    fill_job fj = {mesh, tris, st.tri_count};
-    as_parallel_run(st.tri_count >= 65536 ? threads : 1, fill_tris, &fj);
 
     const as_build_args_t *args = b->args;
     as_structure_t cb;

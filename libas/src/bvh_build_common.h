@@ -146,22 +146,15 @@ static inline void bvh_pending_pop(bvh_pending_stack *s)
 }
 /* When a thread of the pool waits for work, shares the oldest entry. */
 void bvh_pending_offer(bvh_builder *b, struct as_task_pool *pool, bvh_pending_stack *s);
-/* How many threads may split an SBVH node of `count` references together
- * (the in-place builders split only the root on several threads: binned SAH
- * with these rules was slower with two threads, 1.09 and 1.12 times its time
- * before on bathroom and bmw-m6 in 5 interleaved rounds): 1 for a node of
- * fewer than BVH_SPLIT_MT_MIN_PRIMS, where threads would cost more than they
- * save; every build thread for the root (`s` is not read then) and for nodes
- * of at least a quarter of the
- * references (the top of a lopsided tree: bmw-m6's first SBVH splits leave
- * 733,338 and 608,590 of 792,582 references on one side, and the other
- * thread, done with the small side, waited 24-28 ms at each); for another
- * node, 1 + the threads of the pool that wait for work when the task has
- * nothing left to offer them; else 1. The
- * helpers take the node's work in pieces from a shared counter, so one
- * that gets no core (the other build threads being busy) delays nothing. */
-unsigned bvh_split_threads(const bvh_builder *b, struct as_task_pool *pool, const bvh_pending_stack *s, uint32_t count,
-                           int root);
+/* How many threads may split a node of `count` references together: 1
+ * below BVH_SPLIT_MT_MIN_PRIMS, where threads would cost more than they
+ * save, else every build thread. Inside the builders' pool that asks for no
+ * thread of its own: the node's steps (as_parallel_run) are taken in pieces
+ * by the thread that splits it and by whichever of the pool's threads are
+ * idle meanwhile, such as the one done with the small side of a lopsided
+ * split (bmw-m6's first SBVH splits leave 733,338 and 608,590 of 792,582
+ * references on one side; staircase's binned root 260,094 of 262,508). */
+unsigned bvh_split_threads(const bvh_builder *b, uint32_t count);
 /* A node's references in pieces that the threads of a split take in turn
  * from a shared counter, so that a helper thread which gets no core (its
  * build thread's partner is busy with a task of its own) delays nothing: the
@@ -344,13 +337,16 @@ uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bv
  * `threads` threads (the root: every build thread), with the result of
  * one. */
 typedef int (*bvh_split_fn)(bvh_builder *b, const bvh_range *node, unsigned threads, bvh_range *left, bvh_range *right);
-/* Builds the subtree of at most BVH_EXACT_MAX references of range r under
- * `node` (at `depth`) by the exact SAH sweep, with the binned builder's leaf
- * rule: a split where it costs less than a leaf or the node holds more than
- * max_leaf_size references, halving where every centroid coincides, a leaf
- * at the depth cap. Reorders r's references into the leaves' order. */
+/* Builds the subtree of the `count` (at most BVH_EXACT_MAX) references at
+ * `refs`, whose box is `box`, under `node` (at `depth`) by the exact SAH
+ * sweep, with the binned builder's leaf rule: a split where it costs less
+ * than a leaf or the node holds more than max_leaf_size references, halving
+ * where every centroid coincides, a leaf at the depth cap. Reorders the
+ * references into the leaves' order; the leaves point into `refs`, which
+ * must outlive the tree. */
 #define BVH_EXACT_MAX 32
-void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, const bvh_range *r, uint32_t depth);
+void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, bvh_ref *refs, uint32_t count,
+                             const bvh_box *box, uint32_t depth);
 
 /* Builds the whole tree over b->refs with `split` on every build thread
  * (and bvh_build_exact_subtree below b->exact_max references); returns the

@@ -27,7 +27,7 @@ _Static_assert(BVH_EXACT_MAX <= 255, "local indices are 8-bit");
 typedef struct exact_state {
     bvh_builder *b;
     bvh_local *loc;
-    uint32_t first;                     /* the subtree's range in b->refs */
+    bvh_ref *refs;                      /* the subtree's references */
     float ci, ct;
     v4f lo[BVH_EXACT_MAX], hi[BVH_EXACT_MAX];
     float area[BVH_EXACT_MAX];          /* each reference's half area */
@@ -35,14 +35,13 @@ typedef struct exact_state {
     uint8_t side[BVH_EXACT_MAX];        /* 1: left, for the split being made */
     uint8_t leaf_order[BVH_EXACT_MAX];  /* the references by final position */
     float right_area[BVH_EXACT_MAX];
-    v4f right_lo[BVH_EXACT_MAX], right_hi[BVH_EXACT_MAX];
     bvh_ref copy[BVH_EXACT_MAX];
 } exact_state;
 
 static void exact_leaf(exact_state *st, int32_t node, uint32_t s, uint32_t n)
 {
     memcpy(st->leaf_order + s, st->ord[0] + s, n);
-    bvh_local_leaf(st->loc, node, st->b->refs + st->first + s, n);
+    bvh_local_leaf(st->loc, node, st->refs + s, n);
 }
 
 /* The best exact split of segment [s, s + n) over all axes; the axis, or -1
@@ -54,6 +53,12 @@ typedef struct exact_split {
     v4f llo, lhi, rlo, rhi;
 } exact_split;
 
+/* (double)k for the sweeps' counts, without a conversion per candidate. */
+static const double count_as_double[BVH_EXACT_MAX + 1] = {
+    0,  1,  2,  3,  4,  5,  6,  7,  8,  9,  10, 11, 12, 13, 14, 15, 16,
+    17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32};
+_Static_assert(BVH_EXACT_MAX == 32, "count_as_double lists 0..BVH_EXACT_MAX");
+
 static exact_split exact_find(exact_state *st, uint32_t s, uint32_t n, const float keys[3][BVH_EXACT_MAX])
 {
     exact_split best;
@@ -61,6 +66,7 @@ static exact_split exact_find(exact_state *st, uint32_t s, uint32_t n, const flo
     best.mid = 0;
     best.cost = INFINITY;
     const v4f inf = v4f_set1(INFINITY), ninf = v4f_set1(-INFINITY);
+    /* Every box here is a union of triangles' boxes, so valid. */
     for (int axis = 0; axis < 3; ++axis) {
         const uint8_t *o = st->ord[axis] + s;
         if (!(keys[axis][o[n - 1]] > keys[axis][o[0]])) continue; /* every centroid on one plane */
@@ -68,26 +74,35 @@ static exact_split exact_find(exact_state *st, uint32_t s, uint32_t n, const flo
         for (uint32_t i = n; i-- > 1;) {
             a = v4f_min(a, st->lo[o[i]]);
             z = v4f_max(z, st->hi[o[i]]);
-            st->right_area[i] = v4f_box_half_area(a, z);
-            st->right_lo[i] = a;
-            st->right_hi[i] = z;
+            st->right_area[i] = v4f_half_area_valid(a, z);
         }
         a = inf;
         z = ninf;
         for (uint32_t i = 0; i + 1 < n; ++i) {
             a = v4f_min(a, st->lo[o[i]]);
             z = v4f_max(z, st->hi[o[i]]);
-            const double c = (double)v4f_box_half_area(a, z) * (i + 1) + (double)st->right_area[i + 1] * (n - i - 1);
+            const double c = (double)v4f_half_area_valid(a, z) * count_as_double[i + 1] +
+                             (double)st->right_area[i + 1] * count_as_double[n - i - 1];
             if (c < best.cost) {
                 best.cost = c;
                 best.axis = axis;
                 best.mid = i + 1;
                 best.llo = a;
                 best.lhi = z;
-                best.rlo = st->right_lo[i + 1];
-                best.rhi = st->right_hi[i + 1];
             }
         }
+    }
+    if (best.axis >= 0) {
+        /* The right side's box, once for the chosen split rather than at
+         * every candidate. */
+        const uint8_t *o = st->ord[best.axis] + s;
+        v4f a = inf, z = ninf;
+        for (uint32_t i = best.mid; i < n; ++i) {
+            a = v4f_min(a, st->lo[o[i]]);
+            z = v4f_max(z, st->hi[o[i]]);
+        }
+        best.rlo = a;
+        best.rhi = z;
     }
     return best;
 }
@@ -196,17 +211,18 @@ static void sort_axis(const float *k, uint32_t n, uint8_t *order)
     }
 }
 
-void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, const bvh_range *r, uint32_t depth)
+void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, bvh_ref *refs, uint32_t count,
+                             const bvh_box *box, uint32_t depth)
 {
     exact_state st;
     float keys[3][BVH_EXACT_MAX];
-    const uint32_t n = r->count;
+    const uint32_t n = count;
     st.b = b;
     st.loc = loc;
-    st.first = r->first;
+    st.refs = refs;
     st.ci = b->args->cost_intersection;
     st.ct = b->args->cost_traversal;
-    memcpy(st.copy, b->refs + r->first, sizeof(bvh_ref) * n);
+    memcpy(st.copy, refs, sizeof(bvh_ref) * n);
     for (uint32_t i = 0; i < n; ++i) {
         st.lo[i] = v4f_load3(st.copy[i].lo);
         st.hi[i] = v4f_load3(st.copy[i].hi);
@@ -216,8 +232,7 @@ void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, const
         for (int axis = 0; axis < 3; ++axis) keys[axis][i] = c[axis];
     }
     for (int axis = 0; axis < 3; ++axis) sort_axis(keys[axis], n, st.ord[axis]);
-    const v4f blo = v4f_set3(r->box.lo), bhi = v4f_set3(r->box.hi);
+    const v4f blo = v4f_set3(box->lo), bhi = v4f_set3(box->hi);
     exact_node(&st, node, 0, n, depth, blo, bhi, (const float(*)[BVH_EXACT_MAX])keys);
-    bvh_ref *dst = b->refs + r->first;
-    for (uint32_t i = 0; i < n; ++i) dst[i] = st.copy[st.leaf_order[i]];
+    for (uint32_t i = 0; i < n; ++i) refs[i] = st.copy[st.leaf_order[i]];
 }

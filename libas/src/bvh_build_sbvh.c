@@ -192,7 +192,7 @@ static void mem_free_all(sbvh_ctx *ctx)
 
 /* A copy of a leaf's references in the store; NULL when count is 0 or no
  * memory is left. */
-static const bvh_ref *leaf_store(sbvh_mem *m, const bvh_ref *refs, uint32_t count)
+static bvh_ref *leaf_store(sbvh_mem *m, const bvh_ref *refs, uint32_t count)
 {
     if (!m || count == 0) return NULL;
     if (count > m->leaf_cap - m->leaf_top) {
@@ -774,11 +774,25 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pe
 {
     bvh_builder *b = t->ctx->b;
     bvh_pending_offer(b, pool, pend);
+    /* A small node whose box is no larger than the spatial splits'
+     * threshold: no spatial split is tried anywhere below it (every
+     * overlap of children lies inside it), so its subtree is the exact
+     * object sweep's, built in the leaf store where its leaves stay. */
+    if (t->count <= BVH_EXACT_MAX && bvh_box_half_area(&b->nodes[t->node].box) <= t->ctx->alpha_area &&
+        !atomic_load_explicit(&b->cancelled, memory_order_relaxed)) {
+        bvh_ref *stored = leaf_store(m, t->refs, t->count);
+        if (stored) {
+            if (t->owned) block_release(t->ctx, t->refs, t->cap);
+            const bvh_box box = b->nodes[t->node].box;
+            bvh_build_exact_subtree(b, loc, t->node, stored, t->count, &box, t->depth);
+            return;
+        }
+    }
     sides sd = {NULL, NULL, 0, 0, 0, 0, 0, 0};
     int32_t l, r;
     if (atomic_load_explicit(&b->cancelled, memory_order_relaxed) || t->count <= 1 || t->depth + 1 >= b->depth_limit ||
         !sbvh_split(t->ctx, m, &b->nodes[t->node].box, t->refs, t->count, t->budget, t->depth == 0,
-                    bvh_split_threads(b, pool, pend, t->count, t->depth == 0), &sd)) {
+                    bvh_split_threads(b, t->count), &sd)) {
         sbvh_leaf(loc, m, t);
         return;
     }

@@ -8,7 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-int as_mesh_triangle_is_degenerate(const as_mesh_t *mesh, uint32_t i)
+static int triangle_has_no_normal(const as_mesh_t *mesh, uint32_t i)
 {
     const uint32_t *t = mesh->indices + (size_t)i * 3;
     if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) return 1;
@@ -24,6 +24,29 @@ int as_mesh_triangle_is_degenerate(const as_mesh_t *mesh, uint32_t i)
                         e1[2] * e2[0] - e1[0] * e2[2],
                         e1[0] * e2[1] - e1[1] * e2[0]};
     return n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f;
+}
+
+int as_mesh_triangle_is_degenerate(const as_mesh_t *mesh, uint32_t i)
+{
+    if (mesh->degenerate_bits) return (int)(mesh->degenerate_bits[i >> 6] >> (i & 63)) & 1;
+    return triangle_has_no_normal(mesh, i);
+}
+
+uint32_t as_mesh_degenerate_in_range(const as_mesh_t *mesh, uint32_t first, uint32_t end)
+{
+    if (!mesh->degenerate_count || first >= end) return 0;
+    if (!mesh->degenerate_bits) {
+        uint32_t n = 0;
+        for (uint32_t i = first; i < end; ++i) n += (uint32_t)triangle_has_no_normal(mesh, i);
+        return n;
+    }
+    const uint64_t *w = mesh->degenerate_bits;
+    const uint32_t w0 = first >> 6, w1 = (end - 1) >> 6;
+    const uint64_t head = ~(uint64_t)0 << (first & 63), tail = ~(uint64_t)0 >> (63 - ((end - 1) & 63));
+    if (w0 == w1) return (uint32_t)__builtin_popcountll(w[w0] & head & tail);
+    uint32_t n = (uint32_t)__builtin_popcountll(w[w0] & head) + (uint32_t)__builtin_popcountll(w[w1] & tail);
+    for (uint32_t k = w0 + 1; k < w1; ++k) n += (uint32_t)__builtin_popcountll(w[k]);
+    return n;
 }
 
 as_error_t as_mesh_finish(as_mesh_t *mesh, const char *name)
@@ -55,6 +78,11 @@ as_error_t as_mesh_finish(as_mesh_t *mesh, const char *name)
      * move the default camera or the root box. */
     float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
     uint32_t degenerate = 0;
+    /* One bit per triangle, so that every build skips zero-area triangles
+     * without reading their vertices again. */
+    free(mesh->degenerate_bits);
+    mesh->degenerate_bits = as_calloc(((size_t)mesh->triangle_count + 63) / 64, sizeof(uint64_t), "mesh degenerate bits");
+    if (!mesh->degenerate_bits) return as_get_error();
     for (uint32_t t = 0; t < mesh->triangle_count; ++t) {
         for (int c = 0; c < 3; ++c) {
             const float *q = mesh->positions + (size_t)idx[(size_t)t * 3 + c] * 3;
@@ -63,7 +91,10 @@ as_error_t as_mesh_finish(as_mesh_t *mesh, const char *name)
                 if (q[k] > hi[k]) hi[k] = q[k];
             }
         }
-        degenerate += (uint32_t)as_mesh_triangle_is_degenerate(mesh, t);
+        if (triangle_has_no_normal(mesh, t)) {
+            mesh->degenerate_bits[t >> 6] |= (uint64_t)1 << (t & 63);
+            degenerate++;
+        }
     }
     memcpy(mesh->bounds_lo, lo, sizeof lo);
     memcpy(mesh->bounds_hi, hi, sizeof hi);
@@ -115,6 +146,7 @@ void as_mesh_release(as_mesh_t *mesh)
     free(mesh->normals);
     free(mesh->uvs);
     free(mesh->material_ids);
+    free(mesh->degenerate_bits);
     free(mesh);
 }
 

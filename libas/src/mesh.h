@@ -20,6 +20,7 @@ struct as_mesh {
     uint64_t faces_in_file;
     uint32_t polygon_faces;
     uint32_t degenerate_count;
+    uint64_t *degenerate_bits; /* bit i: triangle i is degenerate (set by as_mesh_finish) */
     float bounds_lo[3], bounds_hi[3];
     uint64_t hash;
 };
@@ -32,6 +33,8 @@ as_error_t as_mesh_finish(as_mesh_t *mesh, const char *name);
 /* Whether triangle i has zero area (exactly, in float): such triangles are
  * kept but never hit. */
 int as_mesh_triangle_is_degenerate(const as_mesh_t *mesh, uint32_t i);
+/* How many of triangles [first, end) are degenerate. */
+uint32_t as_mesh_degenerate_in_range(const as_mesh_t *mesh, uint32_t first, uint32_t end);
 
 #ifdef __cplusplus
 }

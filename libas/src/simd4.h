@@ -50,6 +50,15 @@ static inline float v4f_half_area(v4f lo, v4f hi)
     const __m128 s = _mm_add_ss(p, _mm_shuffle_ps(p, p, _MM_SHUFFLE(1, 1, 1, 1)));
     return _mm_cvtss_f32(_mm_add_ss(s, _mm_movehl_ps(p, p)));
 }
+/* The same for a box known to be valid (lo <= hi in every lane), such as a
+ * union of triangles' boxes: no test. */
+static inline float v4f_half_area_valid(v4f lo, v4f hi)
+{
+    const __m128 d = _mm_sub_ps(hi, lo);
+    const __m128 p = _mm_mul_ps(d, _mm_shuffle_ps(d, d, _MM_SHUFFLE(3, 0, 2, 1)));
+    const __m128 s = _mm_add_ss(p, _mm_shuffle_ps(p, p, _MM_SHUFFLE(1, 1, 1, 1)));
+    return _mm_cvtss_f32(_mm_add_ss(s, _mm_movehl_ps(p, p)));
+}
 
 #else
 
@@ -91,6 +100,7 @@ static inline float v4f_half_area(v4f lo, v4f hi)
     if (d0 < 0.0f || d1 < 0.0f || d2 < 0.0f) return 0.0f;
     return d0 * d1 + d1 * d2 + d2 * d0;
 }
+static inline float v4f_half_area_valid(v4f lo, v4f hi) { return v4f_half_area(lo, hi); }
 
 #endif
 

@@ -7,9 +7,21 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* A parallel step (as_parallel_run) that a thread of the pool publishes so
+ * that the pool's idle threads can take some of its indices. */
+typedef struct help_job {
+    void (*fn)(void *user, unsigned i, unsigned n);
+    void *user;
+    unsigned n;
+    atomic_uint next;   /* the next index not yet taken */
+    unsigned helpers;   /* pool threads inside the job, under the pool's lock */
+} help_job;
+
 struct as_task_pool {
     pthread_mutex_t lock;
     pthread_cond_t wake;
+    pthread_cond_t help_done;   /* a helper left the published job */
+    help_job *help;             /* the published step, or NULL; under the lock */
     size_t task_size;
     unsigned char *stack;
     size_t depth, capacity;
@@ -53,13 +65,43 @@ unsigned as_task_pool_idle(as_task_pool *p)
 
 int as_task_pool_hungry(as_task_pool *p) { return as_task_pool_idle(p) > 0; }
 
+/* The pool the calling thread works for, if any: as_parallel_run inside a
+ * task shares its indices with that pool's idle threads instead of
+ * starting threads of its own, which would outnumber the cores. */
+static _Thread_local as_task_pool *current_pool;
+
+static void help_run(help_job *h)
+{
+    for (;;) {
+        const unsigned i = atomic_fetch_add_explicit(&h->next, 1, memory_order_relaxed);
+        if (i >= h->n) return;
+        h->fn(h->user, i, h->n);
+    }
+}
+
+/* Called with the lock held; returns with it held. */
+static int help_if_asked(as_task_pool *p)
+{
+    help_job *h = p->help;
+    if (!h || atomic_load_explicit(&h->next, memory_order_relaxed) >= h->n) return 0;
+    h->helpers++;
+    pthread_mutex_unlock(&p->lock);
+    help_run(h);
+    pthread_mutex_lock(&p->lock);
+    if (--h->helpers == 0) pthread_cond_signal(&p->help_done);
+    return 1;
+}
+
 static void *worker(void *arg)
 {
     as_task_pool *p = arg;
+    as_task_pool *outer = current_pool;
+    current_pool = p;
     _Alignas(16) unsigned char task[AS_TASK_MAX_SIZE];
     pthread_mutex_lock(&p->lock);
     for (;;) {
         while (p->depth == 0 && p->active > 0) {
+            if (help_if_asked(p)) continue;
             atomic_fetch_add(&p->waiting, 1);
             pthread_cond_wait(&p->wake, &p->lock);
             atomic_fetch_sub(&p->waiting, 1);
@@ -74,6 +116,7 @@ static void *worker(void *arg)
         if (--p->active == 0) pthread_cond_broadcast(&p->wake);
     }
     pthread_mutex_unlock(&p->lock);
+    current_pool = outer;
     return NULL;
 }
 
@@ -92,7 +135,8 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
         pthread_mutex_destroy(&p.lock);
         return 0;
     }
-    if (!as_task_pool_push(&p, first)) {
+    if (pthread_cond_init(&p.help_done, NULL) != 0 || !as_task_pool_push(&p, first)) {
+        pthread_cond_destroy(&p.help_done);
         pthread_cond_destroy(&p.wake);
         pthread_mutex_destroy(&p.lock);
         return 0;
@@ -108,6 +152,7 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
     worker(&p);
     for (unsigned i = 0; i < started; ++i) pthread_join(tids[i], NULL);
     free(p.stack);
+    pthread_cond_destroy(&p.help_done);
     pthread_cond_destroy(&p.wake);
     pthread_mutex_destroy(&p.lock);
     return 1;
@@ -126,10 +171,44 @@ static void *parallel_thread(void *arg)
     return NULL;
 }
 
+/* Inside a pool's task: the indices are taken one at a time by this thread
+ * and by whichever of the pool's threads are idle or become idle before
+ * they are all taken; with none, this thread runs them all. One step is
+ * published at a time; another thread's step meanwhile runs on its caller
+ * alone. */
+static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user)
+{
+    help_job h;
+    h.fn = fn;
+    h.user = user;
+    h.n = n;
+    atomic_init(&h.next, 0);
+    h.helpers = 0;
+    pthread_mutex_lock(&p->lock);
+    const int published = p->help == NULL;
+    if (published) {
+        p->help = &h;
+        if (atomic_load_explicit(&p->waiting, memory_order_relaxed) > 0) pthread_cond_broadcast(&p->wake);
+    }
+    pthread_mutex_unlock(&p->lock);
+    help_run(&h);
+    if (!published) return;
+    /* Every index is taken; the job lives in this frame until the helpers
+     * that took one have left it. */
+    pthread_mutex_lock(&p->lock);
+    p->help = NULL;
+    while (h.helpers > 0) pthread_cond_wait(&p->help_done, &p->lock);
+    pthread_mutex_unlock(&p->lock);
+}
+
 void as_parallel_run(unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user)
 {
     if (n < 1) n = 1;
     if (n > 256) n = 256;
+    if (n > 1 && current_pool) {
+        parallel_in_pool(current_pool, n, fn, user);
+        return;
+    }
     pthread_t tids[256];
     parallel_job jobs[256];
     int started[256];

@@ -33,10 +33,13 @@ int as_task_pool_hungry(as_task_pool *pool);
  * read without the lock: a hint. */
 unsigned as_task_pool_idle(as_task_pool *pool);
 
-/* Runs fn(user, i, n) for i in [0, n) on n threads (the caller's included)
- * and returns when all are done; n is clamped to [1, 256]. A thread that
- * cannot be started runs on the caller's, so fn must not wait on another
- * index. */
+/* Runs fn(user, i, n) once for each i in [0, n) and returns when all are
+ * done; n is clamped to [1, 256]. Outside a pool: on n threads, the
+ * caller's included (a thread that cannot be started runs on the caller's).
+ * Inside a task of as_task_pool_run: on the caller's thread and the pool's
+ * idle threads, which take the indices one at a time, so any thread may run
+ * any number of them, in any order. Either way fn must not wait on another
+ * index, and its results must not depend on which thread ran which. */
 void as_parallel_run(unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user);
 
 #endif

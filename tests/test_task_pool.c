@@ -1,0 +1,128 @@
+/* The builders' threads: as_parallel_run runs every index exactly once,
+ * outside a pool on threads of its own and inside a task of
+ * as_task_pool_run on the pool's idle threads; a step published by one task
+ * never holds up another, and the pool ends when every task is done. */
+#include "as/as.h"
+#include "task_pool.h"
+#include "test_util.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+
+#define MAX_INDICES 256
+
+typedef struct step {
+    atomic_uint runs[MAX_INDICES];
+    atomic_uint total;
+    unsigned n;
+    pthread_t owner[MAX_INDICES];
+} step;
+
+static void count_index(void *user, unsigned i, unsigned n)
+{
+    step *s = user;
+    if (n != s->n) return; /* counted as missing below */
+    atomic_fetch_add(&s->runs[i], 1);
+    atomic_fetch_add(&s->total, 1);
+    s->owner[i] = pthread_self();
+    /* A little work, so that idle threads have time to join. */
+    volatile unsigned x = 0;
+    for (unsigned k = 0; k < 20000; ++k) x += k;
+}
+
+static int each_index_once(step *s)
+{
+    int bad = 0;
+    for (unsigned i = 0; i < s->n; ++i) bad += atomic_load(&s->runs[i]) != 1;
+    return bad == 0 && atomic_load(&s->total) == s->n;
+}
+
+static void step_init(step *s, unsigned n)
+{
+    memset(s, 0, sizeof *s);
+    s->n = n;
+}
+
+static void outside_a_pool_every_index_runs_once(void)
+{
+    const unsigned ns[] = {1, 2, 3, 16, 256};
+    for (size_t k = 0; k < sizeof ns / sizeof ns[0]; ++k) {
+        step s;
+        step_init(&s, ns[k]);
+        as_parallel_run(ns[k], count_index, &s);
+        CHECK(each_index_once(&s));
+    }
+}
+
+/* Tasks: a tree of depth 3, each task pushing two children and running a
+ * parallel step of its own, so that steps overlap and meet idle threads. */
+typedef struct tree_task {
+    unsigned depth;
+    unsigned id;
+} tree_task;
+
+static step steps[15];
+static atomic_uint tasks_run;
+
+static void tree_run(as_task_pool *pool, void *task, void *user)
+{
+    (void)user;
+    tree_task t;
+    memcpy(&t, task, sizeof t);
+    atomic_fetch_add(&tasks_run, 1);
+    if (t.depth < 3) {
+        const tree_task l = {t.depth + 1, 2 * t.id + 1}, r = {t.depth + 1, 2 * t.id + 2};
+        if (!as_task_pool_push(pool, &l)) tree_run(pool, (void *)&l, user);
+        if (!as_task_pool_push(pool, &r)) tree_run(pool, (void *)&r, user);
+    }
+    if (t.id < 15) as_parallel_run(steps[t.id].n, count_index, &steps[t.id]);
+}
+
+static void inside_a_pool_every_index_runs_once(void)
+{
+    const unsigned threads[] = {1, 2, 3, 8};
+    for (size_t k = 0; k < sizeof threads / sizeof threads[0]; ++k) {
+        for (unsigned i = 0; i < 15; ++i) step_init(&steps[i], 1 + (i * 37) % 64);
+        atomic_store(&tasks_run, 0);
+        const tree_task root = {0, 0};
+        CHECK(as_task_pool_run(threads[k], sizeof root, &root, tree_run, NULL));
+        CHECK_EQ_INT(atomic_load(&tasks_run), 15);
+        int bad = 0;
+        for (unsigned i = 0; i < 15; ++i) bad += !each_index_once(&steps[i]);
+        if (bad) fprintf(stderr, "     %u threads: %d steps ran an index other than once\n", threads[k], bad);
+        CHECK_EQ_INT(bad, 0);
+    }
+}
+
+/* One task with a long step and nothing else to do: the pool's other
+ * threads, idle, take part of it. */
+static step lone;
+static void lone_run(as_task_pool *pool, void *task, void *user)
+{
+    (void)pool;
+    (void)task;
+    (void)user;
+    as_parallel_run(lone.n, count_index, &lone);
+}
+
+static void idle_pool_threads_take_part_in_a_step(void)
+{
+    int helped = 0;
+    /* Thread start-up can be slow on a loaded machine: a few tries. */
+    for (int attempt = 0; attempt < 20 && !helped; ++attempt) {
+        step_init(&lone, 256);
+        const char dummy = 0;
+        CHECK(as_task_pool_run(4, 1, &dummy, lone_run, NULL));
+        CHECK(each_index_once(&lone));
+        for (unsigned i = 1; i < lone.n; ++i) helped |= !pthread_equal(lone.owner[i], lone.owner[0]);
+    }
+    CHECK(helped);
+}
+
+int main(void)
+{
+    RUN_TEST(outside_a_pool_every_index_runs_once);
+    RUN_TEST(inside_a_pool_every_index_runs_once);
+    RUN_TEST(idle_pool_threads_take_part_in_a_step);
+    TEST_EXIT();
+}
