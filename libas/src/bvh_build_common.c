@@ -152,7 +152,7 @@ bvh_box bvh_refs_box(const bvh_ref *refs, uint32_t count)
     v4f lo = v4f_set1(INFINITY), hi = v4f_set1(-INFINITY);
     for (uint32_t i = 0; i < count; ++i) {
         lo = v4f_min(lo, v4f_load3(refs[i].lo));
-        hi = v4f_max(hi, v4f_load3(refs[i].hi));
+        hi = v4f_max(hi, bvh_ref_load_hi(refs[i].hi));
     }
     return bvh_box_from_v4f(lo, hi);
 }
@@ -161,7 +161,7 @@ bvh_box bvh_refs_centroid2_box(const bvh_ref *refs, uint32_t count)
 {
     v4f lo = v4f_set1(INFINITY), hi = v4f_set1(-INFINITY);
     for (uint32_t i = 0; i < count; ++i) {
-        const v4f c = v4f_add(v4f_load3(refs[i].lo), v4f_load3(refs[i].hi));
+        const v4f c = v4f_add(v4f_load3(refs[i].lo), bvh_ref_load_hi(refs[i].hi));
         lo = v4f_min(lo, c);
         hi = v4f_max(hi, c);
     }
@@ -173,7 +173,7 @@ void bvh_range_bound(const bvh_builder *b, bvh_range *r)
     const bvh_ref *refs = b->refs + r->first;
     v4f lo = v4f_set1(INFINITY), hi = v4f_set1(-INFINITY), clo = lo, chi = hi;
     for (uint32_t i = 0; i < r->count; ++i) {
-        const v4f l = v4f_load3(refs[i].lo), h = v4f_load3(refs[i].hi), c = v4f_add(l, h);
+        const v4f l = v4f_load3(refs[i].lo), h = bvh_ref_load_hi(refs[i].hi), c = v4f_add(l, h);
         lo = v4f_min(lo, l);
         hi = v4f_max(hi, h);
         clo = v4f_min(clo, c);
@@ -275,8 +275,8 @@ static void bin_all(const bvh_ref *refs, uint32_t count, v4f vcmin, v4f vscale, 
         }
     uint32_t i = 0;
     for (; i + 1 < count; i += 2) {
-        const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
-        const v4f lo1 = v4f_load3(refs[i + 1].lo), hi1 = v4f_load3(refs[i + 1].hi);
+        const v4f lo0 = v4f_load3(refs[i].lo), hi0 = bvh_ref_load_hi(refs[i].hi);
+        const v4f lo1 = v4f_load3(refs[i + 1].lo), hi1 = bvh_ref_load_hi(refs[i + 1].hi);
         int32_t k0[4], k1[4];
         bin_of(lo0, hi0, vcmin, vscale, last, k0);
         bin_of(lo1, hi1, vcmin, vscale, last, k1);
@@ -291,7 +291,7 @@ static void bin_all(const bvh_ref *refs, uint32_t count, v4f vcmin, v4f vscale, 
         }
     }
     if (i < count) {
-        const v4f lo0 = v4f_load3(refs[i].lo), hi0 = v4f_load3(refs[i].hi);
+        const v4f lo0 = v4f_load3(refs[i].lo), hi0 = bvh_ref_load_hi(refs[i].hi);
         int32_t k0[4];
         bin_of(lo0, hi0, vcmin, vscale, last, k0);
         for (int axis = 0; axis < 3; ++axis) {
@@ -386,7 +386,7 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
         memset(occupied, 0, sizeof occupied);
         uint8_t kk[4 * BVH_MAX_BINS][3];
         for (uint32_t i = 0; i < count; ++i) {
-            const v4f lo = v4f_load3(refs[i].lo), hi = v4f_load3(refs[i].hi);
+            const v4f lo = v4f_load3(refs[i].lo), hi = bvh_ref_load_hi(refs[i].hi);
             int32_t k[4];
             bin_of(lo, hi, vcmin, vscale, last, k);
             for (int axis = 0; axis < 3; ++axis) {
@@ -399,7 +399,7 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
             }
         }
         for (uint32_t i = 0; i < count; ++i) {
-            const v4f lo = v4f_load3(refs[i].lo), hi = v4f_load3(refs[i].hi);
+            const v4f lo = v4f_load3(refs[i].lo), hi = bvh_ref_load_hi(refs[i].hi);
             for (int axis = 0; axis < 3; ++axis) {
                 const uint32_t x = kk[i][axis];
                 bins.lo[axis][x] = v4f_min(bins.lo[axis][x], lo);
@@ -601,8 +601,8 @@ uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
          * to become two leaves): one plane per axis, and each costs the
          * two references' areas, so the general loops below pick the first
          * axis whose centroids differ, with the lower centroid left. */
-        const v4f lo0 = v4f_load3(refs[0].lo), hi0 = v4f_load3(refs[0].hi);
-        const v4f lo1 = v4f_load3(refs[1].lo), hi1 = v4f_load3(refs[1].hi);
+        const v4f lo0 = v4f_load3(refs[0].lo), hi0 = bvh_ref_load_hi(refs[0].hi);
+        const v4f lo1 = v4f_load3(refs[1].lo), hi1 = bvh_ref_load_hi(refs[1].hi);
         const v4f c0 = v4f_add(lo0, hi0), c1 = v4f_add(lo1, hi1);
         const int lt = v4f_lt_mask(c1, c0) & 7, gt = v4f_lt_mask(c0, c1) & 7;
         const int differ = lt | gt;
@@ -623,7 +623,7 @@ uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
     float key[3][BVH_SMALL_NODE];
     for (uint32_t i = 0; i < count; ++i) {
         lo[i] = v4f_load3(refs[i].lo);
-        hi[i] = v4f_load3(refs[i].hi);
+        hi[i] = bvh_ref_load_hi(refs[i].hi);
         float c[4];
         v4f_store(c, v4f_add(lo[i], hi[i]));
         for (int axis = 0; axis < 3; ++axis) key[axis][i] = c[axis];
@@ -684,14 +684,14 @@ static uint32_t partition_hoare(bvh_builder *b, const bvh_range *node, const bvh
      * with the partition, so the children need no pass of their own. */
     for (;;) {
         while (i < j && bvh_object_split_left(&refs[i], s)) {
-            const v4f c = v4f_add(v4f_load3(refs[i].lo), v4f_load3(refs[i].hi));
+            const v4f c = v4f_add(v4f_load3(refs[i].lo), bvh_ref_load_hi(refs[i].hi));
             lclo = v4f_min(lclo, c);
             lchi = v4f_max(lchi, c);
             ++i;
         }
         while (i < j && !bvh_object_split_left(&refs[j - 1], s)) {
             --j;
-            const v4f c = v4f_add(v4f_load3(refs[j].lo), v4f_load3(refs[j].hi));
+            const v4f c = v4f_add(v4f_load3(refs[j].lo), bvh_ref_load_hi(refs[j].hi));
             rclo = v4f_min(rclo, c);
             rchi = v4f_max(rchi, c);
         }
@@ -738,7 +738,7 @@ static void mark_sides(const bvh_ref *refs, uint32_t count, const bvh_object_spl
         uint64_t word = 0;
         for (uint32_t k = 0; k < n; ++k) {
             const bvh_ref *r = &refs[first + k];
-            const v4f c = v4f_add(v4f_load3(r->lo), v4f_load3(r->hi));
+            const v4f c = v4f_add(v4f_load3(r->lo), bvh_ref_load_hi(r->hi));
             /* bvh_object_split_left's operations, lane a. */
             const uint32_t f = (uint32_t)(v4f_lt_mask(v4f_mul(v4f_sub(c, vcmin), vscale), vlimit) >> a) & 1u;
             word |= (uint64_t)f << k;

@@ -25,6 +25,19 @@ typedef struct bvh_ref {
     float pad;
 } bvh_ref;
 
+/* A reference's hi corner as four lanes, the fourth its pad: every
+ * reference is made with pad 0 (bvh_builder_init) and copied whole since,
+ * so the lane is +0 and the load needs no mask, unlike lo's, whose fourth
+ * lane is the index and would be a denormal in arithmetic. */
+static inline v4f bvh_ref_load_hi(const float *hi)
+{
+#if defined(__SSE2__)
+    return v4f_load(hi); /* 16 bytes from hi: hi[3] and pad */
+#else
+    return v4f_load3(hi);
+#endif
+}
+
 typedef struct bvh_box {
     float lo[3], hi[3];
 } bvh_box;

@@ -225,7 +225,7 @@ void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, bvh_r
     memcpy(st.copy, refs, sizeof(bvh_ref) * n);
     for (uint32_t i = 0; i < n; ++i) {
         st.lo[i] = v4f_load3(st.copy[i].lo);
-        st.hi[i] = v4f_load3(st.copy[i].hi);
+        st.hi[i] = bvh_ref_load_hi(st.copy[i].hi);
         st.area[i] = v4f_box_half_area(st.lo[i], st.hi[i]);
         float c[4];
         v4f_store(c, v4f_add(st.lo[i], st.hi[i]));

@@ -352,7 +352,7 @@ static void spatial_bin(const bvh_builder *b, const spatial_frame *f, const bvh_
     }
     for (uint32_t i = 0; i < count; ++i) {
         const bvh_ref *r = &refs[i];
-        const v4f lo = v4f_load3(r->lo), hi = v4f_load3(r->hi);
+        const v4f lo = v4f_load3(r->lo), hi = bvh_ref_load_hi(r->hi);
         int32_t k0[4], k1[4];
         v4f_to_i32(v4f_min(v4f_max(v4f_mul(v4f_sub(lo, f->vlo), f->vscale), zero), f->last), k0);
         v4f_to_i32(v4f_min(v4f_max(v4f_mul(v4f_sub(hi, f->vlo), f->vscale), zero), f->last), k1);
