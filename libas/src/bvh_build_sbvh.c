@@ -36,6 +36,9 @@
  * few per cent that greedy top-down choices move it either way) in 20% less
  * time. */
 #define SBVH_SPATIAL_BINS 16u
+/* Nodes of at most SBVH_SMALL_NODE references bin into this many. */
+#define SBVH_SMALL_NODE 32u
+#define SBVH_SMALL_NODE_SPATIAL_BINS 8u
 
 /* Reference memory, one per running task (a thread builds one task at a
  * time), kept for the whole build and handed from task to task:
@@ -94,6 +97,7 @@ typedef struct sbvh_ctx {
     bvh_builder *b;
     double alpha_area;   /* overlap threshold: sbvh_alpha x root half area */
     float fraction[SBVH_SPATIAL_BINS + 1]; /* i / bins, for the planes */
+    uint32_t fraction_bins;                /* the planes of fraction: the spatial bins of a large node */
     pthread_mutex_t mem_lock;
     sbvh_mem *free_mems, *all_mems;
     atomic_int out_of_memory;    /* a leaf could not be stored */
@@ -462,7 +466,14 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
 {
     const bvh_builder *b = ctx->b;
     spatial_frame fr;
-    const uint32_t nb = fr.nb = b->args->bin_count < SBVH_SPATIAL_BINS ? b->args->bin_count : SBVH_SPATIAL_BINS;
+    /* Small nodes: half the planes. There most references straddle several
+     * bins and are clipped at each, which made spatial binning two thirds
+     * of the bunny's build; with 8 planes the bunny builds in 0.82 of the
+     * time, and the SAH cost moved by -0.3% (bmw-m6) to +0.15% (staircase). */
+    uint32_t nb = ctx->fraction_bins;
+    if (count <= SBVH_SMALL_NODE && nb > SBVH_SMALL_NODE_SPATIAL_BINS && nb % SBVH_SMALL_NODE_SPATIAL_BINS == 0)
+        nb = SBVH_SMALL_NODE_SPATIAL_BINS;
+    fr.nb = nb;
     spatial_split best;
     memset(&best, 0, sizeof best);
     best.axis = -1;
@@ -479,7 +490,7 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
     if (!use[0] && !use[1] && !use[2]) return best;
     for (int axis = 0; axis < 3; ++axis)
         for (uint32_t i = 0; i <= nb; ++i)
-            fr.planes[axis][i] = node_box->lo[axis] + (node_box->hi[axis] - node_box->lo[axis]) * ctx->fraction[i];
+            fr.planes[axis][i] = node_box->lo[axis] + (node_box->hi[axis] - node_box->lo[axis]) * ctx->fraction[i * (ctx->fraction_bins / nb)];
     fr.vlo = v4f_load(nlo);
     fr.vscale = v4f_load(scale);
     fr.last = v4f_set1((float)(nb - 1));
@@ -877,6 +888,7 @@ as_error_t as_bvh_build_sbvh(const as_mesh_t *mesh, const as_build_args_t *args,
     ctx.alpha_area = (double)args->sbvh_alpha * bvh_box_half_area(&b.root_box);
     const uint32_t spatial_bins = args->bin_count < SBVH_SPATIAL_BINS ? args->bin_count : SBVH_SPATIAL_BINS;
     for (uint32_t i = 0; i <= spatial_bins; ++i) ctx.fraction[i] = (float)i / (float)spatial_bins;
+    ctx.fraction_bins = spatial_bins;
     const int32_t root = bvh_new_node(&b);
     b.nodes[root].box = b.root_box;
     b.nodes[root].left = b.nodes[root].right = -1;
