@@ -298,7 +298,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     const uint64_t node_count = atomic_load(&b.node_next);
     out = as_aligned_alloc(sizeof(as_bih_node_t) * node_count, "BIH nodes");
     prims = as_aligned_alloc(sizeof(uint32_t) * (size_t)(n ? n : 1), "BIH PRIM");
-    tris = as_spatial_tris(mesh);
+    tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
     if (!out || !prims || !tris) goto fail;
     memset(out, 0, sizeof(as_bih_node_t) * node_count);
     bih_flat f = {&b, out, 1, prims, 0, 0, 0, 0};

@@ -196,7 +196,20 @@ static void sort_cells(void *user, size_t block)
     const uint64_t begin = block * SORT_BLOCK, end = begin + SORT_BLOCK < job->cells ? begin + SORT_BLOCK : job->cells;
     for (uint64_t c = begin; c < end; ++c) {
         const uint32_t a = job->offsets[c], b = job->offsets[c + 1];
-        if (b - a > 1) qsort(job->prims + a, b - a, sizeof(uint32_t), cmp_u32);
+        uint32_t *p = job->prims + a;
+        const uint32_t n = b - a;
+        if (n > 32) {
+            qsort(p, n, sizeof(uint32_t), cmp_u32);
+            continue;
+        }
+        /* Most cells hold a few triangles: insertion sort, with no call per
+         * comparison. */
+        for (uint32_t i = 1; i < n; ++i) {
+            const uint32_t x = p[i];
+            uint32_t j = i;
+            for (; j > 0 && p[j - 1] > x; --j) p[j] = p[j - 1];
+            p[j] = x;
+        }
     }
 }
 
@@ -316,7 +329,7 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     offsets = as_aligned_alloc(sizeof(uint32_t) * (cells + 1), "grid cell offsets");
     const uint64_t refs = atomic_load(&job.refs);
     prims = as_aligned_alloc(sizeof(uint32_t) * (refs ? refs : 1), "grid PRIM");
-    tris = as_spatial_tris(mesh);
+    tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
     if (!offsets || !prims || !tris) { err = as_get_error(); goto done; }
     /* The prefix sum, sequential: one pass over the cells. */
     uint64_t sum = 0, nonempty = 0;

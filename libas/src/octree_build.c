@@ -263,7 +263,7 @@ as_error_t as_octree_build(const as_mesh_t *mesh, const as_build_args_t *args, a
     }
     nodes = as_aligned_alloc(sizeof(as_octree_node_t) * cell_count, "octree nodes");
     prims = as_aligned_alloc(sizeof(uint32_t) * (size_t)(refs ? refs : 1), "octree PRIM");
-    tris = as_spatial_tris(mesh);
+    tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
     if (!nodes || !prims || !tris) { err = as_get_error(); goto done; }
     uint64_t p = 0, inner = 0, leaves = 0, empty = 0;
     uint32_t max_depth = 0;

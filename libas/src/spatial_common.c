@@ -5,31 +5,37 @@
 #include <stdio.h>
 #include <string.h>
 
-as_tri4_t *as_spatial_tris(const as_mesh_t *mesh)
+typedef struct tris_job {
+    const as_mesh_t *mesh;
+    as_tri4_t *tris;
+} tris_job;
+
+#define TRIS_BLOCK 65536
+
+static void tris_block(void *user, size_t block)
+{
+    const tris_job *j = user;
+    const as_mesh_t *mesh = j->mesh;
+    const float *p = mesh->positions;
+    const uint32_t n = mesh->triangle_count, first = (uint32_t)(block * TRIS_BLOCK);
+    const uint32_t end = n - first < TRIS_BLOCK ? n : first + TRIS_BLOCK;
+    for (uint32_t i = first; i < end; ++i) {
+        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
+        const float *a = p + 3 * (size_t)ix[0], *b = p + 3 * (size_t)ix[1], *c = p + 3 * (size_t)ix[2];
+        j->tris[i].v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(i)};
+        j->tris[i].v1 = (as_f4_t){b[0], b[1], b[2], 0.0f};
+        j->tris[i].v2 = (as_f4_t){c[0], c[1], c[2], 0.0f};
+    }
+}
+
+as_tri4_t *as_spatial_tris(const as_mesh_t *mesh, unsigned threads)
 {
     const uint32_t n = mesh->triangle_count;
     as_tri4_t *tris = as_aligned_alloc(sizeof(as_tri4_t) * (size_t)(n ? n : 1), "TRIS triangles");
     if (!tris) return NULL;
-    const float *p = mesh->positions;
-    for (uint32_t i = 0; i < n; ++i) {
-        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
-        const float *a = p + 3 * (size_t)ix[0], *b = p + 3 * (size_t)ix[1], *c = p + 3 * (size_t)ix[2];
-        tris[i].v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(i)};
-        tris[i].v1 = (as_f4_t){b[0], b[1], b[2], 0.0f};
-        tris[i].v2 = (as_f4_t){c[0], c[1], c[2], 0.0f};
-    }
+    tris_job j = {mesh, tris};
+    as_parallel_for(threads, ((size_t)n + TRIS_BLOCK - 1) / TRIS_BLOCK, tris_block, &j);
     return tris;
-}
-
-double as_spatial_pad(const float lo[3], const float hi[3])
-{
-    double m = 0.0;
-    for (int k = 0; k < 3; ++k) {
-        if (fabs((double)lo[k]) > m) m = fabs((double)lo[k]);
-        if (fabs((double)hi[k]) > m) m = fabs((double)hi[k]);
-    }
-    /* 2^-20: eight ulps of the largest coordinate. */
-    return m * 0x1p-20 + 1e-30;
 }
 
 double as_spatial_half_area(const float lo[3], const float hi[3])

@@ -5,13 +5,15 @@
 #define AS_SPATIAL_COMMON_H
 
 #include "structure.h"
+
+#include <math.h>
 #include "mesh.h"
 #include "bvh2_layout.h"
 
 /* TRIS: entry i is source triangle i with v0.w = i (uint32 bits); zero-area
- * triangles are present but no structure refers to them. NULL (error set)
- * when out of memory. */
-as_tri4_t *as_spatial_tris(const as_mesh_t *mesh);
+ * triangles are present but no structure refers to them. Filled on up to
+ * `threads` threads. NULL (error set) when out of memory. */
+as_tri4_t *as_spatial_tris(const as_mesh_t *mesh, unsigned threads);
 
 /* Whether triangle (a, b, c) overlaps the closed box [lo, hi] grown by
  * `pad` on every side: the separating-axis test of Akenine-Moller 2001
@@ -24,7 +26,16 @@ int as_tri_box_overlap(const float *a, const float *b, const float *c, const flo
 
 /* The pad the octree and grid use around a cell with these corners: a few
  * float ulps of the largest coordinate involved. */
-double as_spatial_pad(const float lo[3], const float hi[3]);
+static inline double as_spatial_pad(const float lo[3], const float hi[3])
+{
+    double m = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        if (fabs((double)lo[k]) > m) m = fabs((double)lo[k]);
+        if (fabs((double)hi[k]) > m) m = fabs((double)hi[k]);
+    }
+    /* 2^-20: eight ulps of the largest coordinate. */
+    return m * 0x1p-20 + 1e-30;
+}
 
 /* Fills META's writer, kind, layout, builder, parameters, source and bounds. */
 void as_spatial_meta(as_structure_t *s, const as_mesh_t *mesh, const as_build_args_t *args, uint32_t kind,
