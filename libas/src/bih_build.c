@@ -21,6 +21,7 @@
  * threads. */
 #include "spatial_common.h"
 #include "bih_layout.h"
+#include "simd4.h"
 
 #include <float.h>
 #include <math.h>
@@ -88,43 +89,61 @@ static void make_leaf(bih_builder *b, int32_t node, uint32_t first, uint32_t cou
 
 static float centre(const bih_ref *r, int axis) { return 0.5f * (r->lo[axis] + r->hi[axis]); }
 
+/* A node's candidate box and the box of its objects' centres; the parent's
+ * partition computes the latter, so a node makes one pass over its objects. */
+typedef struct bih_boxes {
+    float cand_lo[3], cand_hi[3];
+    float clo[3], chi[3];
+} bih_boxes;
+
 typedef struct bih_task {
     bih_builder *b;
     int32_t node;
     uint32_t first, count, depth;
-    float cand_lo[3], cand_hi[3];
+    bih_boxes boxes;
 } bih_task;
 
 static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t count, uint32_t depth,
-                       const float cand_lo_in[3], const float cand_hi_in[3]);
+                       const bih_boxes *in);
+
+static void centre_grow(const bih_ref *r, float lo[3], float hi[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        const float c = centre(r, k);
+        if (c < lo[k]) lo[k] = c;
+        if (c > hi[k]) hi[k] = c;
+    }
+}
+
+static void box_reset(float lo[3], float hi[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = FLT_MAX;
+        hi[k] = -FLT_MAX;
+    }
+}
 
 static void *build_thread(void *arg)
 {
     bih_task *t = arg;
-    build_node(t->b, t->node, t->first, t->count, t->depth, t->cand_lo, t->cand_hi);
+    build_node(t->b, t->node, t->first, t->count, t->depth, &t->boxes);
     atomic_fetch_sub(&t->b->live_threads, 1);
     return NULL;
 }
 
 static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t count, uint32_t depth,
-                       const float cand_lo_in[3], const float cand_hi_in[3])
+                       const bih_boxes *in)
 {
     if (atomic_load(&b->cancelled) || count <= b->args->max_leaf_size || depth >= b->depth_limit) {
         make_leaf(b, node, first, count);
         return;
     }
-    float cand_lo[3], cand_hi[3], clo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, chi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
-    memcpy(cand_lo, cand_lo_in, sizeof cand_lo);
-    memcpy(cand_hi, cand_hi_in, sizeof cand_hi);
-    for (uint32_t i = first; i < first + count; ++i)
-        for (int k = 0; k < 3; ++k) {
-            const float c = centre(&b->refs[i], k);
-            if (c < clo[k]) clo[k] = c;
-            if (c > chi[k]) chi[k] = c;
-        }
+    float cand_lo[3], cand_hi[3];
+    memcpy(cand_lo, in->cand_lo, sizeof cand_lo);
+    memcpy(cand_hi, in->cand_hi, sizeof cand_hi);
+    const float *clo = in->clo, *chi = in->chi;
     int axis = -1;
     float split = 0.0f;
-    float left_lo[3], left_hi[3], right_lo[3], right_hi[3];
     if (clo[0] < chi[0] || clo[1] < chi[1] || clo[2] < chi[2]) {
         /* The global heuristic: halve the candidate box until the plane
          * separates the centres (the centre box decides without a pass over
@@ -142,23 +161,52 @@ static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t co
             break;
         }
     }
+    bih_boxes lb, rb;
+    box_reset(lb.clo, lb.chi);
+    box_reset(rb.clo, rb.chi);
+    float lmax = -FLT_MAX, rmin = FLT_MAX;
     uint32_t mid;
     if (axis >= 0) {
+        /* One pass: the partition, each side's clip bound and the children's
+         * centre boxes (maxima and minima do not depend on the order), in
+         * registers. */
+        const v4f half = v4f_set1(0.5f);
+        v4f llo = v4f_set1(FLT_MAX), lhi = v4f_set1(-FLT_MAX), rlo = llo, rhi = lhi;
         uint32_t i = first, j = first + count;
         while (i < j) {
-            if (centre(&b->refs[i], axis) < split) { ++i; continue; }
+            bih_ref *r = &b->refs[i];
+            const v4f c = v4f_mul(half, v4f_add(v4f_load3(r->lo), v4f_load3(r->hi)));
+            if (centre(r, axis) < split) {
+                llo = v4f_min(llo, c);
+                lhi = v4f_max(lhi, c);
+                if (r->hi[axis] > lmax) lmax = r->hi[axis];
+                ++i;
+                continue;
+            }
+            rlo = v4f_min(rlo, c);
+            rhi = v4f_max(rhi, c);
+            if (r->lo[axis] < rmin) rmin = r->lo[axis];
             --j;
             const bih_ref t = b->refs[i];
             b->refs[i] = b->refs[j];
             b->refs[j] = t;
         }
+        float tmp[4];
+        v4f_store(tmp, llo);
+        memcpy(lb.clo, tmp, sizeof lb.clo);
+        v4f_store(tmp, lhi);
+        memcpy(lb.chi, tmp, sizeof lb.chi);
+        v4f_store(tmp, rlo);
+        memcpy(rb.clo, tmp, sizeof rb.clo);
+        v4f_store(tmp, rhi);
+        memcpy(rb.chi, tmp, sizeof rb.chi);
         mid = i;
-        memcpy(left_lo, cand_lo, sizeof left_lo);
-        memcpy(left_hi, cand_hi, sizeof left_hi);
-        memcpy(right_lo, cand_lo, sizeof right_lo);
-        memcpy(right_hi, cand_hi, sizeof right_hi);
-        left_hi[axis] = split;
-        right_lo[axis] = split;
+        memcpy(lb.cand_lo, cand_lo, sizeof cand_lo);
+        memcpy(lb.cand_hi, cand_hi, sizeof cand_hi);
+        memcpy(rb.cand_lo, cand_lo, sizeof cand_lo);
+        memcpy(rb.cand_hi, cand_hi, sizeof cand_hi);
+        lb.cand_hi[axis] = split;
+        rb.cand_lo[axis] = split;
     } else {
         /* Coincident centres: halve the list on the longest axis of the
          * candidate box; both children keep the parent's candidate box. */
@@ -166,16 +214,19 @@ static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t co
         for (int j = 1; j < 3; ++j)
             if (cand_hi[j] - cand_lo[j] > cand_hi[axis] - cand_lo[axis]) axis = j;
         mid = first + count / 2;
-        memcpy(left_lo, cand_lo, sizeof left_lo);
-        memcpy(left_hi, cand_hi, sizeof left_hi);
-        memcpy(right_lo, cand_lo, sizeof right_lo);
-        memcpy(right_hi, cand_hi, sizeof right_hi);
+        for (uint32_t i = first; i < mid; ++i) {
+            centre_grow(&b->refs[i], lb.clo, lb.chi);
+            if (b->refs[i].hi[axis] > lmax) lmax = b->refs[i].hi[axis];
+        }
+        for (uint32_t i = mid; i < first + count; ++i) {
+            centre_grow(&b->refs[i], rb.clo, rb.chi);
+            if (b->refs[i].lo[axis] < rmin) rmin = b->refs[i].lo[axis];
+        }
+        memcpy(lb.cand_lo, cand_lo, sizeof cand_lo);
+        memcpy(lb.cand_hi, cand_hi, sizeof cand_hi);
+        memcpy(rb.cand_lo, cand_lo, sizeof cand_lo);
+        memcpy(rb.cand_hi, cand_hi, sizeof cand_hi);
     }
-    float lmax = -FLT_MAX, rmin = FLT_MAX;
-    for (uint32_t i = first; i < mid; ++i)
-        if (b->refs[i].hi[axis] > lmax) lmax = b->refs[i].hi[axis];
-    for (uint32_t i = mid; i < first + count; ++i)
-        if (b->refs[i].lo[axis] < rmin) rmin = b->refs[i].lo[axis];
     const uint64_t l = atomic_fetch_add(&b->node_next, 2);
     if (l + 2 > b->node_capacity) { /* cannot happen: 2n - 1 nodes at most */
         make_leaf(b, node, first, count);
@@ -188,9 +239,7 @@ static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t co
     n->clip[1] = rmin;
     n->first = n->count = 0;
     const uint32_t lcount = mid - first, rcount = first + count - mid;
-    bih_task task = {b, (int32_t)l, first, lcount, depth + 1, {0}, {0}};
-    memcpy(task.cand_lo, left_lo, sizeof task.cand_lo);
-    memcpy(task.cand_hi, left_hi, sizeof task.cand_hi);
+    bih_task task = {b, (int32_t)l, first, lcount, depth + 1, lb};
     pthread_t tid;
     int spawned = 0;
     if (lcount >= PARALLEL_MIN_PRIMS && rcount >= PARALLEL_MIN_PRIMS) {
@@ -198,8 +247,8 @@ static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t co
             spawned = pthread_create(&tid, NULL, build_thread, &task) == 0;
         if (!spawned) atomic_fetch_sub(&b->live_threads, 1);
     }
-    if (!spawned) build_node(b, (int32_t)l, first, lcount, depth + 1, left_lo, left_hi);
-    build_node(b, (int32_t)l + 1, mid, rcount, depth + 1, right_lo, right_hi);
+    if (!spawned) build_node(b, (int32_t)l, first, lcount, depth + 1, &lb);
+    build_node(b, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
     if (spawned) pthread_join(tid, NULL);
 }
 
@@ -251,8 +300,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     /* Node depth d needs d stack entries; leaves at AS_BIH_MAX_DEPTH at most. */
     b.depth_limit = args->max_depth && args->max_depth < AS_BIH_MAX_DEPTH ? args->max_depth : AS_BIH_MAX_DEPTH;
     pthread_mutex_init(&b.progress_lock, NULL);
-    uint32_t n = 0;
-    for (uint32_t i = 0; i < mesh->triangle_count; ++i) n += !as_mesh_triangle_is_degenerate(mesh, i);
+    const uint32_t n = mesh->triangle_count - mesh->degenerate_count;
     b.total = n;
     b.refs = as_malloc(sizeof(bih_ref) * (size_t)(n ? n : 1), "BIH references");
     b.node_capacity = 2 * (uint64_t)n + 1;
@@ -266,6 +314,8 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
         goto fail;
     }
     float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    bih_boxes root;
+    box_reset(root.clo, root.chi);
     {
         uint32_t k = 0;
         for (uint32_t i = 0; i < mesh->triangle_count; ++i) {
@@ -286,11 +336,14 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
                 if (r->lo[a] < lo[a]) lo[a] = r->lo[a];
                 if (r->hi[a] > hi[a]) hi[a] = r->hi[a];
             }
+            centre_grow(r, root.clo, root.chi);
         }
     }
     if (n == 0) for (int a = 0; a < 3; ++a) lo[a] = hi[a] = 0.0f;
+    memcpy(root.cand_lo, lo, sizeof lo);
+    memcpy(root.cand_hi, hi, sizeof hi);
     atomic_store(&b.node_next, 1);
-    build_node(&b, 0, 0, n, 0, lo, hi);
+    build_node(&b, 0, 0, n, 0, &root);
     if (atomic_load(&b.cancelled)) {
         as_set_error(AS_ERROR_CANCELLED, "BIH build cancelled by the progress callback");
         goto fail;
