@@ -366,7 +366,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     s->meta.max_depth_limit = b.depth_limit;
     as_structure_add_section(s, ASF_TAG_BIHN, out, f.out_count, sizeof(as_bih_node_t));
     as_structure_add_section(s, ASF_TAG_PRIM, prims, f.prim_count, sizeof(uint32_t));
-    as_structure_add_section(s, ASF_TAG_TRIS, tris, mesh->triangle_count, sizeof(as_tri4_t));
+    as_spatial_add_tris(s, tris, mesh->triangle_count);
     s->meta.sah_cost = as_bih_sah_cost(s, NULL);
     s->build_ms = as_now_ms() - t_start;
     free(b.refs);

@@ -12,9 +12,9 @@
  * parallel passes over fixed blocks of triangles: find each triangle's cells
  * and count per cell (atomic adds: the totals do not depend on the order),
  * keeping the (cell, triangle) pairs of each block so the overlap tests run
- * once; a sequential prefix sum into GRDC; fill from the pairs (atomic
- * cursors); then sort each cell's list in parallel, so PRIM is the same
- * whatever the thread count. */
+ * once; a sequential prefix sum into GRDC; fill from the pairs, each
+ * thread a range of cells, in triangle order, so PRIM is the same whatever
+ * the thread count. */
 #include "spatial_common.h"
 #include "grid_layout.h"
 
@@ -152,18 +152,37 @@ static void grid_block(void *user, size_t block)
     report_progress(job, end - begin);
 }
 
-/* Pass 2 over a block: its pairs into the cells' lists. */
-static void grid_fill(void *user, size_t block)
+/* Pass 2 for one range of cells: every block's pairs, in block order,
+ * those of the range into their cells' lists. Each cell belongs to one
+ * range, so its cursor needs no atomic add, and its list comes out in
+ * triangle order (the pairs are), which is PRIM's order whatever the
+ * thread count. */
+typedef struct fill_job {
+    grid_job *job;
+    size_t blocks;
+    uint64_t cells;
+    unsigned ranges;
+} fill_job;
+
+static void grid_fill_range(void *user, size_t range)
 {
-    grid_job *job = user;
+    const fill_job *f = user;
+    grid_job *job = f->job;
     if (atomic_load(&job->cancelled)) return;
-    const grid_pairs *pairs = &job->pairs[block];
-    for (size_t i = 0; i < pairs->count; ++i) {
-        const uint32_t at = atomic_fetch_add_explicit(&job->counts[pairs->cell[i]], 1, memory_order_relaxed);
-        job->prims[at] = pairs->tri[i];
+    const uint64_t c0 = f->cells * range / f->ranges, c1 = f->cells * (range + 1) / f->ranges;
+    const uint32_t span = (uint32_t)(c1 - c0);
+    atomic_uint *cursor = job->counts;
+    for (size_t b = 0; b < f->blocks; ++b) {
+        const grid_pairs *pairs = &job->pairs[b];
+        for (size_t i = 0; i < pairs->count; ++i) {
+            const uint32_t cell = pairs->cell[i];
+            if (cell - (uint32_t)c0 >= span) continue;
+            const uint32_t at = atomic_load_explicit(&cursor[cell], memory_order_relaxed);
+            atomic_store_explicit(&cursor[cell], at + 1, memory_order_relaxed);
+            job->prims[at] = pairs->tri[i];
+        }
     }
-    const uint32_t begin = (uint32_t)(block * BLOCK), nt = job->mesh->triangle_count;
-    report_progress(job, begin + BLOCK < nt ? BLOCK : nt - begin);
+    if (range == 0) report_progress(job, job->mesh->triangle_count);
 }
 
 static void free_pairs(grid_pairs *pairs, size_t blocks)
@@ -174,42 +193,6 @@ static void free_pairs(grid_pairs *pairs, size_t blocks)
         free(pairs[b].tri);
         pairs[b].cell = pairs[b].tri = NULL;
         pairs[b].count = pairs[b].cap = 0;
-    }
-}
-
-typedef struct sort_job {
-    const uint32_t *offsets;
-    uint32_t *prims;
-    uint64_t cells;
-} sort_job;
-
-static int cmp_u32(const void *a, const void *b)
-{
-    const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return x < y ? -1 : x > y;
-}
-
-#define SORT_BLOCK 4096
-static void sort_cells(void *user, size_t block)
-{
-    const sort_job *job = user;
-    const uint64_t begin = block * SORT_BLOCK, end = begin + SORT_BLOCK < job->cells ? begin + SORT_BLOCK : job->cells;
-    for (uint64_t c = begin; c < end; ++c) {
-        const uint32_t a = job->offsets[c], b = job->offsets[c + 1];
-        uint32_t *p = job->prims + a;
-        const uint32_t n = b - a;
-        if (n > 32) {
-            qsort(p, n, sizeof(uint32_t), cmp_u32);
-            continue;
-        }
-        /* Most cells hold a few triangles: insertion sort, with no call per
-         * comparison. */
-        for (uint32_t i = 1; i < n; ++i) {
-            const uint32_t x = p[i];
-            uint32_t j = i;
-            for (; j > 0 && p[j - 1] > x; --j) p[j] = p[j - 1];
-            p[j] = x;
-        }
     }
 }
 
@@ -344,11 +327,10 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.pass = 2;
     job.prims = prims;
     atomic_store(&job.done, 0);
-    as_parallel_for(threads, blocks, grid_fill, &job);
+    fill_job fj = {&job, blocks, cells, threads};
+    as_parallel_for(threads, threads, grid_fill_range, &fj);
     free_pairs(job.pairs, blocks);
     if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
-    sort_job sj = {offsets, prims, cells};
-    as_parallel_for(threads, (cells + SORT_BLOCK - 1) / SORT_BLOCK, sort_cells, &sj);
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_GRID, AS_LAYOUT_GRID, AS_GRID_LAYOUT_VERSION, AS_BUILDER_GRID);
     s->meta.node_count = 0;
@@ -361,8 +343,10 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     s->meta.split_budget = args->split_budget;
     as_structure_add_section(s, ASF_TAG_GRDH, g, 1, sizeof *g);
     as_structure_add_section(s, ASF_TAG_GRDC, offsets, cells + 1, sizeof(uint32_t));
+    s->sections[s->section_count - 1].give_bytes = sizeof(uint32_t) * (cells + 1);
     as_structure_add_section(s, ASF_TAG_PRIM, prims, sum, sizeof(uint32_t));
-    as_structure_add_section(s, ASF_TAG_TRIS, tris, nt, sizeof(as_tri4_t));
+    s->sections[s->section_count - 1].give_bytes = sizeof(uint32_t) * (size_t)(refs ? refs : 1);
+    as_spatial_add_tris(s, tris, nt);
     g = NULL;
     offsets = prims = NULL;
     tris = NULL;

@@ -292,7 +292,7 @@ as_error_t as_octree_build(const as_mesh_t *mesh, const as_build_args_t *args, a
     as_structure_add_section(s, ASF_TAG_OCTH, hdr, 1, sizeof *hdr);
     as_structure_add_section(s, ASF_TAG_OCTN, nodes, cell_count, sizeof(as_octree_node_t));
     as_structure_add_section(s, ASF_TAG_PRIM, prims, p, sizeof(uint32_t));
-    as_structure_add_section(s, ASF_TAG_TRIS, tris, mesh->triangle_count, sizeof(as_tri4_t));
+    as_spatial_add_tris(s, tris, mesh->triangle_count);
     hdr = NULL;
     nodes = NULL;
     prims = NULL;

@@ -28,6 +28,12 @@ static void tris_block(void *user, size_t block)
     }
 }
 
+void as_spatial_add_tris(as_structure_t *s, as_tri4_t *tris, uint32_t n)
+{
+    as_structure_add_section(s, ASF_TAG_TRIS, tris, n, sizeof(as_tri4_t));
+    s->sections[s->section_count - 1].give_bytes = sizeof(as_tri4_t) * (size_t)(n ? n : 1);
+}
+
 as_tri4_t *as_spatial_tris(const as_mesh_t *mesh, unsigned threads)
 {
     const uint32_t n = mesh->triangle_count;

@@ -14,6 +14,9 @@
  * triangles are present but no structure refers to them. Filled on up to
  * `threads` threads. NULL (error set) when out of memory. */
 as_tri4_t *as_spatial_tris(const as_mesh_t *mesh, unsigned threads);
+/* Adds TRIS (from as_spatial_tris) to s; the array goes back to the build
+ * memory kept for the next build (as_block_give) when s is released. */
+void as_spatial_add_tris(as_structure_t *s, as_tri4_t *tris, uint32_t n);
 
 /* Whether triangle (a, b, c) overlaps the closed box [lo, hi] grown by
  * `pad` on every side: the separating-axis test of Akenine-Moller 2001
