@@ -9,12 +9,11 @@
  *
  * Each triangle goes to every cell its box covers that it overlaps (exact
  * triangle/box test, Akenine-Moller 2001, with a few-ulp pad). Build in
- * parallel passes over fixed blocks of triangles: find each triangle's cells
- * and count per cell (atomic adds: the totals do not depend on the order),
+ * parallel passes over fixed blocks of triangles: find each triangle's cells,
  * keeping the (cell, triangle) pairs of each block so the overlap tests run
- * once; a sequential prefix sum into GRDC; fill from the pairs, each
- * thread a range of cells, in triangle order, so PRIM is the same whatever
- * the thread count. */
+ * once; count per cell, each thread a range of cells over all pairs; a
+ * sequential prefix sum into GRDC; fill from the pairs the same way, in
+ * triangle order, so PRIM is the same whatever the thread count. */
 #include "spatial_common.h"
 #include "grid_layout.h"
 
@@ -41,7 +40,7 @@ typedef struct grid_job {
     const as_mesh_t *mesh;
     const as_grid_header_t *g;
     const uint8_t *skip;          /* zero-area triangles */
-    atomic_uint *counts;          /* pass 1: per cell; pass 2: cursors */
+    atomic_uint *counts;          /* per cell: counts after pass 1, then cursors in pass 2 */
     uint32_t *prims;              /* pass 2 */
     atomic_uint_fast64_t refs;
     const as_build_args_t *args;
@@ -105,7 +104,10 @@ static void grid_block(void *user, size_t block)
 {
     grid_job *job = user;
     if (atomic_load(&job->cancelled)) return;
-    grid_pairs *pairs = &job->pairs[block];
+    /* The block's pairs are grown in a local copy and stored at the end:
+     * neighbouring blocks' entries share cache lines, and the threads
+     * working on them would trade the line at every push. */
+    grid_pairs local = job->pairs[block], *pairs = &local;
     const as_mesh_t *m = job->mesh;
     const as_grid_header_t *g = job->g;
     const uint32_t begin = (uint32_t)(block * BLOCK);
@@ -116,8 +118,11 @@ static void grid_block(void *user, size_t block)
         /* Pass 1 stops as soon as the budget is exceeded: the total would
          * exceed it too, whatever the order. */
         if ((t & 63) == 0) {
-            if (atomic_load(&job->over)) return;
-            if ((double)(atomic_load(&job->refs) + local_refs) > job->budget) { atomic_store(&job->over, 1); return; }
+            if (atomic_load(&job->over) || (double)(atomic_load(&job->refs) + local_refs) > job->budget) {
+                atomic_store(&job->over, 1);
+                job->pairs[block] = local;
+                return;
+            }
         }
         const uint32_t *ix = m->indices + 3 * (size_t)t;
         const float *a = m->positions + 3 * (size_t)ix[0], *b = m->positions + 3 * (size_t)ix[1],
@@ -140,23 +145,22 @@ static void grid_block(void *user, size_t block)
                     /* A box within one cell overlaps it: no test. */
                     if (!single && !as_tri_box_overlap(a, b, c, lo, hi, as_spatial_pad(lo, hi))) continue;
                     const size_t cell = ((size_t)z * g->dims[1] + y) * g->dims[0] + x;
-                    atomic_fetch_add_explicit(&job->counts[cell], 1, memory_order_relaxed);
                     ++local_refs;
                     if (!pairs_push(pairs, (uint32_t)cell, t)) {
                         atomic_store(&job->oom, 1);
+                        job->pairs[block] = local;
                         return;
                     }
                 }
     }
+    job->pairs[block] = local;
     atomic_fetch_add(&job->refs, local_refs);
     report_progress(job, end - begin);
 }
 
-/* Pass 2 for one range of cells: every block's pairs, in block order,
- * those of the range into their cells' lists. Each cell belongs to one
- * range, so its cursor needs no atomic add, and its list comes out in
- * triangle order (the pairs are), which is PRIM's order whatever the
- * thread count. */
+/* The cells' counts for one range of cells, from every block's pairs: each
+ * cell belongs to one range, so no two threads touch its count (atomic adds
+ * on neighbouring cells from several threads cost more than the pass). */
 typedef struct fill_job {
     grid_job *job;
     size_t blocks;
@@ -164,6 +168,29 @@ typedef struct fill_job {
     unsigned ranges;
 } fill_job;
 
+static void grid_count_range(void *user, size_t range)
+{
+    const fill_job *f = user;
+    grid_job *job = f->job;
+    const uint64_t c0 = f->cells * range / f->ranges, c1 = f->cells * (range + 1) / f->ranges;
+    const uint32_t span = (uint32_t)(c1 - c0);
+    atomic_uint *count = job->counts;
+    for (size_t b = 0; b < f->blocks; ++b) {
+        const grid_pairs *pairs = &job->pairs[b];
+        for (size_t i = 0; i < pairs->count; ++i) {
+            const uint32_t cell = pairs->cell[i];
+            if (cell - (uint32_t)c0 >= span) continue;
+            atomic_store_explicit(&count[cell], atomic_load_explicit(&count[cell], memory_order_relaxed) + 1,
+                                  memory_order_relaxed);
+        }
+    }
+}
+
+/* Pass 2 for one range of cells: every block's pairs, in block order,
+ * those of the range into their cells' lists. Each cell belongs to one
+ * range, so its cursor needs no atomic add, and its list comes out in
+ * triangle order (the pairs are), which is PRIM's order whatever the
+ * thread count. */
 static void grid_fill_range(void *user, size_t range)
 {
     const fill_job *f = user;
@@ -299,7 +326,11 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
         if (atomic_load(&job.oom)) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
         const uint64_t refs = atomic_load(&job.refs);
-        if (!atomic_load(&job.over) && (double)refs <= job.budget) break;
+        if (!atomic_load(&job.over) && (double)refs <= job.budget) {
+            const fill_job cj = {&job, blocks, cells, threads};
+            as_parallel_for(threads, threads, grid_count_range, (void *)&cj);
+            break;
+        }
         if (cells == 1) {
             /* One cell holds every triangle once: within any budget >= 1. */
             err = as_set_error(AS_ERROR_UNSUPPORTED, "grid references exceed 32 bits");
