@@ -23,12 +23,6 @@
  * the full sweep's cost to 0.6% with 64 bins instead of 32, and the other
  * scenes' costs fell by 0.1-1.4%, at no build time measurable. */
 #define BVH_DOUBLE_BINS_MIN 1024
-/* Nodes below this size bin into at most BVH_SMALL_NODE_BINS: there the
- * sweep over the occupied bins costs as much as the binning itself, and the
- * SAH cost of the tree moved by less than 0.6% (staircase +0.55%, bathroom
- * and bmw-m6 under 0.01%), for about 1.5% of the build time. */
-#define BVH_FEWER_BINS_BELOW 128
-#define BVH_SMALL_NODE_BINS 16
 
 static int binned_split(bvh_builder *b, const bvh_range *node, unsigned threads, bvh_range *left, bvh_range *right)
 {
@@ -36,7 +30,6 @@ static int binned_split(bvh_builder *b, const bvh_range *node, unsigned threads,
     const uint32_t count = node->count;
     uint32_t nb = b->args->bin_count;
     if (count > BVH_DOUBLE_BINS_MIN) nb = 2 * nb < BVH_MAX_BINS ? 2 * nb : BVH_MAX_BINS;
-    else if (count < BVH_FEWER_BINS_BELOW && nb > BVH_SMALL_NODE_BINS) nb = BVH_SMALL_NODE_BINS;
     const bvh_object_split s =
         threads > 1 ? bvh_find_object_split_mt(b->refs + node->first, count, &node->cbox, nb, threads)
                     : bvh_find_object_split(b->refs + node->first, count, &node->cbox, nb);

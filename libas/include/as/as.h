@@ -186,8 +186,7 @@ typedef struct as_build_args {
                                     unless the depth cap forces more */
     uint32_t bin_count;          /* SAH bins per axis (binned builder; nodes of
                                     over 1024 triangles use twice as many,
-                                    at most 256, and nodes of fewer than 128
-                                    at most 16) */
+                                    at most 256) */
     float cost_traversal;        /* SAH cost of one node visit */
     float cost_intersection;     /* SAH cost of one triangle test */
     uint32_t thread_count;       /* 0: every core */
