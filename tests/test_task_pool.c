@@ -1,13 +1,15 @@
 /* The builders' threads: as_parallel_run runs every index exactly once,
  * outside a pool on threads of its own and inside a task of
- * as_task_pool_run on the pool's idle threads; a step published by one task
- * never holds up another, and the pool ends when every task is done. */
+ * as_task_pool_run on the pool's idle threads, which do take part; steps of
+ * two tasks that overlap both finish, and the pool ends when every task is
+ * done. */
 #include "as/as.h"
 #include "task_pool.h"
 #include "test_util.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
+#include <time.h>
 
 #define MAX_INDICES 256
 
@@ -119,10 +121,80 @@ static void idle_pool_threads_take_part_in_a_step(void)
     CHECK(helped);
 }
 
+/* Two tasks' steps, one published after the other's owner has stopped
+ * publishing but still waits for its helper: each owner must wake when its
+ * own helpers are done, whichever finishes first. A hang fails the test by
+ * the watchdog below. */
+static void sleep_ms(unsigned ms)
+{
+    const struct timespec t = {(time_t)(ms / 1000), (long)(ms % 1000) * 1000000L};
+    nanosleep(&t, NULL);
+}
+
+static void long_second_index(void *user, unsigned i, unsigned n)
+{
+    (void)user;
+    (void)n;
+    sleep_ms(i == 0 ? 5 : 120);
+}
+
+static void short_second_index(void *user, unsigned i, unsigned n)
+{
+    (void)user;
+    (void)n;
+    sleep_ms(i == 0 ? 5 : 20);
+}
+
+static void overlap_run(as_task_pool *pool, void *task, void *user)
+{
+    (void)user;
+    const int kind = *(const int *)task;
+    if (kind == 0) {
+        const int a = 1, b = 2;
+        if (!as_task_pool_push(pool, &a)) overlap_run(pool, (void *)&a, user);
+        if (!as_task_pool_push(pool, &b)) overlap_run(pool, (void *)&b, user);
+        return;
+    }
+    if (kind == 1) {
+        as_parallel_run(2, long_second_index, NULL);
+        return;
+    }
+    sleep_ms(20);
+    as_parallel_run(2, short_second_index, NULL);
+}
+
+static atomic_int overlap_done;
+
+static void *overlap_watchdog(void *arg)
+{
+    (void)arg;
+    for (int i = 0; i < 300 && !atomic_load(&overlap_done); ++i) sleep_ms(100);
+    if (!atomic_load(&overlap_done)) {
+        fprintf(stderr, "%s: two overlapping steps did not finish within 30 s (a lost wake-up)\n", __FILE__);
+        fprintf(stderr, "FAIL two_overlapping_steps_both_finish\n");
+        _exit(1);
+    }
+    return NULL;
+}
+
+static void two_overlapping_steps_both_finish(void)
+{
+    atomic_store(&overlap_done, 0);
+    pthread_t w;
+    const int watching = pthread_create(&w, NULL, overlap_watchdog, NULL) == 0;
+    for (int round = 0; round < 8; ++round) {
+        const int root = 0;
+        CHECK(as_task_pool_run(4, sizeof root, &root, overlap_run, NULL));
+    }
+    atomic_store(&overlap_done, 1);
+    if (watching) pthread_join(w, NULL);
+}
+
 int main(void)
 {
     RUN_TEST(outside_a_pool_every_index_runs_once);
     RUN_TEST(inside_a_pool_every_index_runs_once);
     RUN_TEST(idle_pool_threads_take_part_in_a_step);
+    RUN_TEST(two_overlapping_steps_both_finish);
     TEST_EXIT();
 }

@@ -185,7 +185,7 @@ static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t co
             }
             rlo = v4f_min(rlo, c);
             rhi = v4f_max(rhi, c);
-            if (r->lo[axis] < rmin) rmin = r->lo[axis];
+            if (r->lo[axis] <= rmin) rmin = r->lo[axis];
             --j;
             const bih_ref t = b->refs[i];
             b->refs[i] = b->refs[j];
@@ -329,6 +329,13 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
                     if (p[a] < r->lo[a]) r->lo[a] = p[a];
                     if (p[a] > r->hi[a]) r->hi[a] = p[a];
                 }
+            }
+            /* -0 becomes +0: the clip planes come from these bounds, and
+             * the sign of a zero in them must not depend on which of two
+             * equal references a pass meets first. */
+            for (int a = 0; a < 3; ++a) {
+                r->lo[a] += 0.0f;
+                r->hi[a] += 0.0f;
             }
             r->id = i;
             r->pad = 0.0f;

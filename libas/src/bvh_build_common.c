@@ -52,6 +52,7 @@ static void init_fill(void *user, unsigned c, unsigned n)
             const float *p = mesh->positions + 3 * (size_t)ix[v];
             bvh_box_grow(&bx, p, p);
         }
+        bvh_box_no_negative_zero(&bx);
         memcpy(r->lo, bx.lo, sizeof r->lo);
         memcpy(r->hi, bx.hi, sizeof r->hi);
         r->id = i;

@@ -200,6 +200,18 @@ static inline void bvh_box_grow(bvh_box *b, const float lo[3], const float hi[3]
     }
 }
 
+/* -0 becomes +0 (x + 0 is x otherwise). Where several threads bin pieces
+ * of a node, a tie between +0 and -0 in a min or max keeps the operand that
+ * the merge order puts second, so a reference's box must hold no -0 for the
+ * tree to be the same whatever the thread count. */
+static inline void bvh_box_no_negative_zero(bvh_box *b)
+{
+    for (int k = 0; k < 3; ++k) {
+        b->lo[k] += 0.0f;
+        b->hi[k] += 0.0f;
+    }
+}
+
 static inline float bvh_ref_centroid(const bvh_ref *r, int axis) { return 0.5f * (r->lo[axis] + r->hi[axis]); }
 
 /* Half the surface area, in double: SAH only compares ratios. */

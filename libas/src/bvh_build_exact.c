@@ -97,7 +97,7 @@ static exact_split exact_find(exact_state *st, uint32_t s, uint32_t n, const flo
          * every candidate. */
         const uint8_t *o = st->ord[best.axis] + s;
         v4f a = inf, z = ninf;
-        for (uint32_t i = best.mid; i < n; ++i) {
+        for (uint32_t i = n; i-- > best.mid;) {
             a = v4f_min(a, st->lo[o[i]]);
             z = v4f_max(z, st->hi[o[i]]);
         }

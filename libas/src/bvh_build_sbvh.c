@@ -638,6 +638,8 @@ static int partition_spatial(const bvh_builder *b, sbvh_mem *m, const bvh_ref *r
         if (c_right < c_split) { out->r[out->nr++] = *r; continue; }
         bvh_box cl, cr;
         split_ref(b->mesh, r, axis, pos, &cl, &cr);
+        bvh_box_no_negative_zero(&cl);
+        bvh_box_no_negative_zero(&cr);
         if (box_valid(&cl)) {
             bvh_ref x = *r;
             memcpy(x.lo, cl.lo, sizeof x.lo);

@@ -40,7 +40,7 @@ typedef struct grid_job {
     const as_mesh_t *mesh;
     const as_grid_header_t *g;
     const uint8_t *skip;          /* zero-area triangles */
-    atomic_uint *counts;          /* per cell: counts after pass 1, then cursors in pass 2 */
+    atomic_uint *counts;          /* per cell: its count (grid_count_range), then its cursor (grid_fill_range) */
     uint32_t *prims;              /* pass 2 */
     atomic_uint_fast64_t refs;
     const as_build_args_t *args;
@@ -99,7 +99,8 @@ static uint32_t clamp_cell(const as_grid_header_t *g, int k, double x)
     return (uint32_t)f;
 }
 
-/* Pass 1 over a block: the cells of each triangle, counted and kept. */
+/* Pass 1 over a block: the cells of each triangle, kept as (cell, triangle)
+ * pairs. */
 static void grid_block(void *user, size_t block)
 {
     grid_job *job = user;
@@ -209,7 +210,9 @@ static void grid_fill_range(void *user, size_t range)
             job->prims[at] = pairs->tri[i];
         }
     }
-    if (range == 0) report_progress(job, job->mesh->triangle_count);
+    /* The second half of the progress, a range's share of the triangles. */
+    const uint64_t nt = job->mesh->triangle_count;
+    report_progress(job, (uint32_t)(nt * (range + 1) / f->ranges - nt * range / f->ranges));
 }
 
 static void free_pairs(grid_pairs *pairs, size_t blocks)

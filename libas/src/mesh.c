@@ -34,12 +34,13 @@ int as_mesh_triangle_is_degenerate(const as_mesh_t *mesh, uint32_t i)
 
 uint32_t as_mesh_degenerate_in_range(const as_mesh_t *mesh, uint32_t first, uint32_t end)
 {
-    if (!mesh->degenerate_count || first >= end) return 0;
+    if (first >= end) return 0;
     if (!mesh->degenerate_bits) {
         uint32_t n = 0;
         for (uint32_t i = first; i < end; ++i) n += (uint32_t)triangle_has_no_normal(mesh, i);
         return n;
     }
+    if (!mesh->degenerate_count) return 0;
     const uint64_t *w = mesh->degenerate_bits;
     const uint32_t w0 = first >> 6, w1 = (end - 1) >> 6;
     const uint64_t head = ~(uint64_t)0 << (first & 63), tail = ~(uint64_t)0 >> (63 - ((end - 1) & 63));

@@ -5,10 +5,10 @@
 #define AS_SPATIAL_COMMON_H
 
 #include "structure.h"
-
-#include <math.h>
 #include "mesh.h"
 #include "bvh2_layout.h"
+
+#include <math.h>
 
 /* TRIS: entry i is source triangle i with v0.w = i (uint32 bits); zero-area
  * triangles are present but no structure refers to them. Filled on up to

@@ -88,7 +88,10 @@ static int help_if_asked(as_task_pool *p)
     pthread_mutex_unlock(&p->lock);
     help_run(h);
     pthread_mutex_lock(&p->lock);
-    if (--h->helpers == 0) pthread_cond_signal(&p->help_done);
+    /* Every owner waiting on help_done wakes and checks its own job: an
+     * owner that cleared its job may still wait while another's is
+     * published, and a signal could wake the wrong one. */
+    if (--h->helpers == 0) pthread_cond_broadcast(&p->help_done);
     return 1;
 }
 
