@@ -460,6 +460,10 @@ static void par_bin(void *user, unsigned c, unsigned n)
 bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t nb,
                                           unsigned threads)
 {
+    /* No index without a piece to take: each index costs two sets of bins
+     * to clear and merge. */
+    const uint32_t pieces = bvh_piece_count(count, threads);
+    if (threads > pieces) threads = pieces;
     obj_bins *bins = threads > 1 ? malloc(sizeof(obj_bins) * 2 * threads) : NULL;
     if (!bins) return bvh_find_object_split(refs, count, cb2, nb);
     bvh_object_split best;
@@ -474,7 +478,7 @@ bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, c
     j.refs = refs;
     j.count = count;
     j.nb = nb;
-    j.pieces = bvh_piece_count(count, threads);
+    j.pieces = pieces;
     atomic_init(&j.next, 0);
     j.vcmin = v4f_load(cmin);
     j.vscale = v4f_load(scale);
@@ -514,7 +518,7 @@ void bvh_make_leaf(bvh_builder *b, int32_t node, const bvh_ref *refs, uint32_t c
 {
     bvh_tmp_node *n = &b->nodes[node];
     n->left = n->right = -1;
-    n->refs = refs; /* an SBVH leaf owns it, even when empty */
+    n->refs = refs; /* in b->refs, or for the SBVH in its leaf store */
     n->count = count;
     n->inner = 0;
     bvh_report_progress(b, count);
@@ -545,7 +549,7 @@ void bvh_local_leaf(bvh_local *l, int32_t node, const bvh_ref *refs, uint32_t co
 {
     bvh_tmp_node *n = &l->b->nodes[node];
     n->left = n->right = -1;
-    n->refs = refs; /* an SBVH leaf owns it, even when empty */
+    n->refs = refs; /* in b->refs, or for the SBVH in its leaf store */
     n->count = count;
     n->inner = 0;
     l->prims += count;

@@ -504,6 +504,9 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
         fr.slab_lo[axis] = v4f_load(l);
         fr.slab_hi[axis] = v4f_load(h);
     }
+    /* No index without a piece to take (see bvh_find_object_split_mt). */
+    const uint32_t pieces = bvh_piece_count(count, threads);
+    if (threads > pieces) threads = pieces;
     spatial_bins one, *many = threads > 1 ? malloc(sizeof(spatial_bins) * 2 * threads) : NULL, *sb = &one;
     if (many) {
         par_spatial_job j;
@@ -511,7 +514,7 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
         j.f = &fr;
         j.refs = refs;
         j.count = count;
-        j.pieces = bvh_piece_count(count, threads);
+        j.pieces = pieces;
         atomic_init(&j.next, 0);
         j.bins = many;
         as_parallel_run(threads, par_spatial, &j);
