@@ -17,7 +17,7 @@
 typedef struct init_job {
     bvh_builder *b;
     unsigned chunks;
-    uint32_t count[256], offset[256];
+    uint32_t offset[256];
     bvh_box box[256], cbox[256];
 } init_job;
 
@@ -25,15 +25,6 @@ static void chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first,
 {
     *first = (uint32_t)((uint64_t)total * i / n);
     *end = (uint32_t)((uint64_t)total * (i + 1) / n);
-}
-
-static void init_count(void *user, unsigned c, unsigned n)
-{
-    init_job *job = user;
-    const as_mesh_t *mesh = job->b->mesh;
-    uint32_t first, end;
-    chunk_range(mesh->triangle_count, c, n, &first, &end);
-    job->count[c] = end - first - as_mesh_degenerate_in_range(mesh, first, end);
 }
 
 static void init_fill(void *user, unsigned c, unsigned n)
@@ -96,12 +87,14 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
     job.b = b;
     job.chunks = mesh->triangle_count >= 65536 ? (unsigned)b->max_threads + 1 : 1;
     if (job.chunks > 256) job.chunks = 256;
-    /* The mesh's bits count the degenerate triangles: no thread needed. */
-    for (unsigned c = 0; c < job.chunks; ++c) init_count(&job, c, job.chunks);
+    /* Each chunk's references start where the earlier chunks' end; the
+     * mesh's bits count the degenerate triangles without a thread. */
     uint32_t n = 0;
     for (unsigned c = 0; c < job.chunks; ++c) {
+        uint32_t first, end;
+        chunk_range(mesh->triangle_count, c, job.chunks, &first, &end);
         job.offset[c] = n;
-        n += job.count[c];
+        n += end - first - as_mesh_degenerate_in_range(mesh, first, end);
     }
     b->ref_count = n;
     b->prim_total = n;
@@ -1053,17 +1046,7 @@ static void set_child_box(as_bvh2_node_t *o, int which, const bvh_box *bx)
 static int32_t emit_leaf(flatten_state *st, const bvh_tmp_node *t)
 {
     const uint32_t start = st->tri_count;
-    const as_mesh_t *mesh = st->b->mesh;
-    const float *p = mesh->positions;
-    for (uint32_t i = 0; i < t->count; ++i) {
-        const uint32_t id = t->refs[i].id;
-        const uint32_t *ix = mesh->indices + 3 * (size_t)id;
-        const float *a = p + 3 * (size_t)ix[0], *bb = p + 3 * (size_t)ix[1], *cc = p + 3 * (size_t)ix[2];
-        as_tri4_t *o = &st->tris[st->tri_count++];
-        o->v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(id)};
-        o->v1 = (as_f4_t){bb[0], bb[1], bb[2], 0.0f};
-        o->v2 = (as_f4_t){cc[0], cc[1], cc[2], 0.0f};
-    }
+    for (uint32_t i = 0; i < t->count; ++i) as_spatial_tri4(st->b->mesh, t->refs[i].id, &st->tris[st->tri_count++]);
     if (t->count) st->leaf_count++; /* the empty sibling of a one-leaf tree is no leaf */
     return ~(int32_t)start;
 }
@@ -1313,11 +1296,10 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
         d->meta.split_budget = args->split_budget;
         d->meta.sbvh_alpha = args->sbvh_alpha;
     }
-    as_structure_add_section(d, ASF_TAG_BVH2, out, st.out_count, sizeof(as_bvh2_node_t));
-    as_structure_add_section(d, ASF_TAG_TRI4, tris, st.tri_count, sizeof(as_tri4_t));
-    /* Both arrays go back to as_block_give on release, for the next build. */
-    d->sections[d->section_count - 2].give_bytes = sizeof(as_bvh2_node_t) * inner;
-    d->sections[d->section_count - 1].give_bytes = sizeof(as_tri4_t) * (size_t)(refs ? refs : 1);
+    as_structure_add_kept_section(d, ASF_TAG_BVH2, out, st.out_count, sizeof(as_bvh2_node_t),
+                                  sizeof(as_bvh2_node_t) * inner);
+    as_structure_add_kept_section(d, ASF_TAG_TRI4, tris, st.tri_count, sizeof(as_tri4_t),
+                                  sizeof(as_tri4_t) * (size_t)(refs ? refs : 1));
     d->meta.sah_cost = as_bvh2_sah_from_sums(args->cost_traversal, args->cost_intersection, root_area, st.inner_area,
                                              st.leaf_area_count, st.out_count, st.tri_count);
     as_error_t err = AS_OK;

@@ -40,7 +40,7 @@ typedef struct grid_job {
     const as_mesh_t *mesh;
     const as_grid_header_t *g;
     const uint8_t *skip;          /* zero-area triangles */
-    atomic_uint *counts;          /* per cell: its count (grid_count_range), then its cursor (grid_fill_range) */
+    atomic_uint *counts;          /* per cell: its count, then its cursor (grid_range_pass) */
     uint32_t *prims;              /* pass 2 */
     atomic_uint_fast64_t refs;
     const as_build_args_t *args;
@@ -159,57 +159,40 @@ static void grid_block(void *user, size_t block)
     report_progress(job, end - begin);
 }
 
-/* The cells' counts for one range of cells, from every block's pairs: each
- * cell belongs to one range, so no two threads touch its count (atomic adds
- * on neighbouring cells from several threads cost more than the pass). */
-typedef struct fill_job {
+/* A pass over every block's pairs, in block order, for one range of cells:
+ * each cell belongs to one range, so no two threads touch its count or
+ * cursor (atomic adds on neighbouring cells from several threads cost more
+ * than the pass). Counting adds one per pair to the cell's count; filling
+ * puts the pair's triangle at the cell's cursor, so each list comes out in
+ * triangle order (the pairs are), which is PRIM's order whatever the thread
+ * count. */
+typedef struct range_job {
     grid_job *job;
     size_t blocks;
     uint64_t cells;
     unsigned ranges;
-} fill_job;
+    int fill;          /* 0: count, 1: fill job->prims */
+} range_job;
 
-static void grid_count_range(void *user, size_t range)
+static void grid_range_pass(void *user, size_t range)
 {
-    const fill_job *f = user;
-    grid_job *job = f->job;
-    const uint64_t c0 = f->cells * range / f->ranges, c1 = f->cells * (range + 1) / f->ranges;
-    const uint32_t span = (uint32_t)(c1 - c0);
-    atomic_uint *count = job->counts;
-    for (size_t b = 0; b < f->blocks; ++b) {
-        const grid_pairs *pairs = &job->pairs[b];
-        for (size_t i = 0; i < pairs->count; ++i) {
-            const uint32_t cell = pairs->cell[i];
-            if (cell - (uint32_t)c0 >= span) continue;
-            atomic_store_explicit(&count[cell], atomic_load_explicit(&count[cell], memory_order_relaxed) + 1,
-                                  memory_order_relaxed);
-        }
-    }
-}
-
-/* Pass 2 for one range of cells: every block's pairs, in block order,
- * those of the range into their cells' lists. Each cell belongs to one
- * range, so its cursor needs no atomic add, and its list comes out in
- * triangle order (the pairs are), which is PRIM's order whatever the
- * thread count. */
-static void grid_fill_range(void *user, size_t range)
-{
-    const fill_job *f = user;
+    const range_job *f = user;
     grid_job *job = f->job;
     if (atomic_load(&job->cancelled)) return;
     const uint64_t c0 = f->cells * range / f->ranges, c1 = f->cells * (range + 1) / f->ranges;
     const uint32_t span = (uint32_t)(c1 - c0);
-    atomic_uint *cursor = job->counts;
+    atomic_uint *at = job->counts;
     for (size_t b = 0; b < f->blocks; ++b) {
         const grid_pairs *pairs = &job->pairs[b];
         for (size_t i = 0; i < pairs->count; ++i) {
             const uint32_t cell = pairs->cell[i];
             if (cell - (uint32_t)c0 >= span) continue;
-            const uint32_t at = atomic_load_explicit(&cursor[cell], memory_order_relaxed);
-            atomic_store_explicit(&cursor[cell], at + 1, memory_order_relaxed);
-            job->prims[at] = pairs->tri[i];
+            const uint32_t k = atomic_load_explicit(&at[cell], memory_order_relaxed);
+            atomic_store_explicit(&at[cell], k + 1, memory_order_relaxed);
+            if (f->fill) job->prims[k] = pairs->tri[i];
         }
     }
+    if (!f->fill) return;
     /* The second half of the progress, a range's share of the triangles. */
     const uint64_t nt = job->mesh->triangle_count;
     report_progress(job, (uint32_t)(nt * (range + 1) / f->ranges - nt * range / f->ranges));
@@ -330,8 +313,8 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         if (atomic_load(&job.oom)) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
         const uint64_t refs = atomic_load(&job.refs);
         if (!atomic_load(&job.over) && (double)refs <= job.budget) {
-            const fill_job cj = {&job, blocks, cells, threads};
-            as_parallel_for(threads, threads, grid_count_range, (void *)&cj);
+            const range_job count = {&job, blocks, cells, threads, 0};
+            as_parallel_for(threads, threads, grid_range_pass, (void *)&count);
             break;
         }
         if (cells == 1) {
@@ -361,8 +344,8 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.pass = 2;
     job.prims = prims;
     atomic_store(&job.done, 0);
-    fill_job fj = {&job, blocks, cells, threads};
-    as_parallel_for(threads, threads, grid_fill_range, &fj);
+    const range_job fill = {&job, blocks, cells, threads, 1};
+    as_parallel_for(threads, threads, grid_range_pass, (void *)&fill);
     free_pairs(job.pairs, blocks);
     if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
 
@@ -376,10 +359,8 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     s->meta.grid_lambda = args->grid_lambda;
     s->meta.split_budget = args->split_budget;
     as_structure_add_section(s, ASF_TAG_GRDH, g, 1, sizeof *g);
-    as_structure_add_section(s, ASF_TAG_GRDC, offsets, cells + 1, sizeof(uint32_t));
-    s->sections[s->section_count - 1].give_bytes = sizeof(uint32_t) * (cells + 1);
-    as_structure_add_section(s, ASF_TAG_PRIM, prims, sum, sizeof(uint32_t));
-    s->sections[s->section_count - 1].give_bytes = sizeof(uint32_t) * (size_t)(refs ? refs : 1);
+    as_structure_add_kept_section(s, ASF_TAG_GRDC, offsets, cells + 1, sizeof(uint32_t), sizeof(uint32_t) * (cells + 1));
+    as_structure_add_kept_section(s, ASF_TAG_PRIM, prims, sum, sizeof(uint32_t), sizeof(uint32_t) * (size_t)(refs ? refs : 1));
     as_spatial_add_tris(s, tris, nt);
     g = NULL;
     offsets = prims = NULL;

@@ -15,23 +15,14 @@ typedef struct tris_job {
 static void tris_block(void *user, size_t block)
 {
     const tris_job *j = user;
-    const as_mesh_t *mesh = j->mesh;
-    const float *p = mesh->positions;
-    const uint32_t n = mesh->triangle_count, first = (uint32_t)(block * TRIS_BLOCK);
+    const uint32_t n = j->mesh->triangle_count, first = (uint32_t)(block * TRIS_BLOCK);
     const uint32_t end = n - first < TRIS_BLOCK ? n : first + TRIS_BLOCK;
-    for (uint32_t i = first; i < end; ++i) {
-        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
-        const float *a = p + 3 * (size_t)ix[0], *b = p + 3 * (size_t)ix[1], *c = p + 3 * (size_t)ix[2];
-        j->tris[i].v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(i)};
-        j->tris[i].v1 = (as_f4_t){b[0], b[1], b[2], 0.0f};
-        j->tris[i].v2 = (as_f4_t){c[0], c[1], c[2], 0.0f};
-    }
+    for (uint32_t i = first; i < end; ++i) as_spatial_tri4(j->mesh, i, &j->tris[i]);
 }
 
 void as_spatial_add_tris(as_structure_t *s, as_tri4_t *tris, uint32_t n)
 {
-    as_structure_add_section(s, ASF_TAG_TRIS, tris, n, sizeof(as_tri4_t));
-    s->sections[s->section_count - 1].give_bytes = sizeof(as_tri4_t) * (size_t)(n ? n : 1);
+    as_structure_add_kept_section(s, ASF_TAG_TRIS, tris, n, sizeof(as_tri4_t), sizeof(as_tri4_t) * (size_t)(n ? n : 1));
 }
 
 as_tri4_t *as_spatial_tris(const as_mesh_t *mesh, unsigned threads)

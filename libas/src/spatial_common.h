@@ -14,6 +14,16 @@
  * triangles are present but no structure refers to them. Filled on up to
  * `threads` threads. NULL (error set) when out of memory. */
 as_tri4_t *as_spatial_tris(const as_mesh_t *mesh, unsigned threads);
+/* Triangle `id` of the mesh as a TRIS/TRI4 entry: its vertices, v0.w = id. */
+static inline void as_spatial_tri4(const as_mesh_t *mesh, uint32_t id, as_tri4_t *out)
+{
+    const uint32_t *ix = mesh->indices + 3 * (size_t)id;
+    const float *a = mesh->positions + 3 * (size_t)ix[0], *b = mesh->positions + 3 * (size_t)ix[1],
+                *c = mesh->positions + 3 * (size_t)ix[2];
+    out->v0 = (as_f4_t){a[0], a[1], a[2], as_uint_as_float(id)};
+    out->v1 = (as_f4_t){b[0], b[1], b[2], 0.0f};
+    out->v2 = (as_f4_t){c[0], c[1], c[2], 0.0f};
+}
 /* Adds TRIS (from as_spatial_tris) to s; the array goes back to the build
  * memory kept for the next build (as_block_give) when s is released. */
 void as_spatial_add_tris(as_structure_t *s, as_tri4_t *tris, uint32_t n);

@@ -152,6 +152,13 @@ void as_structure_add_section(as_structure_t *s, uint32_t tag, void *data, uint6
     sec->file_index = -1;
 }
 
+void as_structure_add_kept_section(as_structure_t *s, uint32_t tag, void *data, uint64_t count, uint32_t stride,
+                                   size_t alloc_bytes)
+{
+    as_structure_add_section(s, tag, data, count, stride);
+    s->sections[s->section_count - 1].give_bytes = alloc_bytes;
+}
+
 const as_section_t *as_structure_find(const as_structure_t *s, uint32_t tag)
 {
     for (uint32_t i = 0; i < s->section_count; ++i)

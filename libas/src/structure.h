@@ -50,6 +50,10 @@ const as_section_t *as_structure_find(const as_structure_t *s, uint32_t tag);
 /* Adds an owned section (takes `data`, allocated with as_aligned_alloc). */
 void as_structure_add_section(as_structure_t *s, uint32_t tag, void *data, uint64_t count,
                               uint32_t stride);
+/* The same for `data` from as_aligned_alloc(alloc_bytes): on release it goes
+ * back to the build memory kept for the next build (as_block_give). */
+void as_structure_add_kept_section(as_structure_t *s, uint32_t tag, void *data, uint64_t count, uint32_t stride,
+                                   size_t alloc_bytes);
 
 /* For each source triangle index, its vertices in the structure (TRIS in
  * source order, or TRI4 in leaf order inverted); NULL where the structure
