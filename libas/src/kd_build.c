@@ -236,16 +236,20 @@ static float round_up(double x)
 
 /* The box of triangle `id` clipped to `box`, intersected with `old` (which
  * already holds the part inside the parent). */
-static void clip_ref(const as_mesh_t *m, const kd_ref *old, const float box[6], kd_ref *out)
+static void clip_ref(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
 {
     /* Six planes add at most six vertices to the triangle's three; one more
      * slot repeats the first vertex after the last, so that every edge is
      * (v[i], v[i + 1]). */
     double poly[2][10][3], dist[10];
     int cnt = 3, cur = 0;
-    const uint32_t *ix = m->indices + 3 * (size_t)old->id;
-    for (int v = 0; v < 3; ++v)
-        for (int k = 0; k < 3; ++k) poly[0][v][k] = m->positions[3 * (size_t)ix[v] + k];
+    const as_tri4_t *t = &tris[old->id];
+    const as_f4_t *const tv[3] = {&t->v0, &t->v1, &t->v2};
+    for (int v = 0; v < 3; ++v) {
+        poly[0][v][0] = tv[v]->x;
+        poly[0][v][1] = tv[v]->y;
+        poly[0][v][2] = tv[v]->z;
+    }
     /* A plane that every vertex is inside of cannot cut the polygon. */
     double tri_lo[3], tri_hi[3];
     for (int k = 0; k < 3; ++k) {
@@ -383,7 +387,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             unsigned keep = 0;
             if (goes_left(r, &sp)) {
                 if (r->hi[sp.axis] > sp.pos) {
-                    clip_ref(c->mesh, r, lbox, &lr[il]);
+                    clip_ref(c->tris, r, lbox, &lr[il]);
                     if (hand_down) sc->clipped[0][cl++] = il;
                 } else {
                     lr[il] = *r;
@@ -393,7 +397,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             }
             if (goes_right(r, &sp)) {
                 if (r->lo[sp.axis] < sp.pos) {
-                    clip_ref(c->mesh, r, rbox, &rr[ir]);
+                    clip_ref(c->tris, r, rbox, &rr[ir]);
                     if (hand_down) sc->clipped[1][cr++] = ir;
                 } else {
                     rr[ir] = *r;
@@ -534,7 +538,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     }
     if (n == 0) memset(box, 0, sizeof box);
 
-    kd_ctx ctx = {args, mesh, ops, 0};
+    kd_ctx ctx = {args, mesh, ops, 0, tris};
     /* The default depth cap grows with log N (8 + 1.3 log2 N, the usual
      * rule), never beyond the traversal stack. */
     uint32_t cap = (uint32_t)(8.0 + 1.3 * log2((double)(n > 1 ? n : 1)));

@@ -81,6 +81,10 @@ typedef struct kd_ctx {
     const as_mesh_t *mesh;
     const kd_builder_ops *ops;
     uint32_t max_depth;
+    /* The triangles as the TRIS section holds them: clipping reads a
+     * triangle's vertices from one 48-byte entry, not through the index
+     * buffer from three places. */
+    const as_tri4_t *tris;
 } kd_ctx;
 
 /* Builds the tree with `ops` and fills s (META and the KD-standard

@@ -153,7 +153,9 @@ static void for_each_axis(unsigned threads, void (*fn)(void *user, int axis), vo
 }
 
 /* Each list has one spare slot: the children's lists are filled by writing
- * every event and advancing only past the kept ones. */
+ * every event and advancing only past the kept ones, and a finished list
+ * ends there with a sentinel above every event (UINT64_MAX, whose key no
+ * finite position has), so the sweep can read one event past the last. */
 static sah_events *events_alloc(size_t per_axis)
 {
     sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + 1));
@@ -201,6 +203,7 @@ static void root_axis_events(void *user, int a)
     for (uint32_t i = 0; i < r->n; ++i) m += put_events(e->list[a] + m, &r->refs[i], a, r->refs[i].id, &e->planar[a]);
     sort_events(e->list[a], tmp, m);
     e->count[a] = m;
+    e->list[a][m] = UINT64_MAX;
     free(tmp);
 }
 
@@ -276,6 +279,8 @@ static void child_axis_events(void *user, int a)
     while (*f1 != UINT64_MAX) o1[n1++] = *f1++;
     e[0]->count[a] = n0;
     e[1]->count[a] = n1;
+    o0[n0] = UINT64_MAX;
+    o1[n1] = UINT64_MAX;
     e[0]->planar[a] = planar[0];
     e[1]->planar[a] = planar[1];
 }
@@ -334,6 +339,33 @@ typedef struct choose_job {
     axis_best best[3];
 } choose_job;
 
+/* The sweep takes a list in chunks of events, three passes per chunk:
+ *  1. the groups of events at one position, without a branch (a group's
+ *     size, 1 up to a vertex's valence, is what a loop over it would
+ *     mispredict on): every event writes its running counts and advances
+ *     past the group's last;
+ *  2. every group's lower cost in single precision, a loop the compiler
+ *     vectorizes;
+ *  3. the exact cost, in double precision, only of the groups whose single
+ *     precision cost is within SWEEP_MARGIN of the best so far: all others
+ *     cost more than it. The single precision terms are non-negative, each
+ *     rounded a few times, so they are within 1e-6 of the exact ones; the
+ *     planes chosen are those of a double precision sweep over every group. */
+#define SWEEP_CHUNK 256
+#define SWEEP_MARGIN 1e-5
+
+typedef struct sweep_chunk {
+    /* Index 0 is the last group of the chunk before (or zeros). Per group:
+     * its key and the events up to and including it (high half), and the
+     * END (low half) and PLANAR events among those: two stores per event. */
+    uint64_t key_events[SWEEP_CHUNK + 1], counts[SWEEP_CHUNK + 1];
+    float cost[SWEEP_CHUNK + 1];
+} sweep_chunk;
+
+/* What an event adds to the END (low half) and PLANAR (high half) counts,
+ * by kind. */
+static const uint64_t sweep_count_step[4] = {1, (uint64_t)1 << 32, 0, 0};
+
 static void sweep_axis(void *user, int axis)
 {
     choose_job *cj = user;
@@ -346,7 +378,6 @@ static void sweep_axis(void *user, int axis)
     const uint64_t *ev = cj->e->list[axis];
     const size_t m = cj->e->count[axis];
     const uint32_t p_total = cj->e->planar[axis], np_total = (uint32_t)((m - p_total) / 2);
-    uint32_t s_lt = 0, e_lt = 0, p_lt = 0;
     /* A side's half area is linear in the plane's position: the face across
      * the axis plus the perimeter of that face times the side's length
      * along it. */
@@ -354,40 +385,93 @@ static void sweep_axis(void *user, int axis)
     const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
     const double face = e1 * e2 / area, rim = (e1 + e2) / area;
     const double lo = box[axis], hi = box[axis + 3];
-    for (size_t i = 0; i < m;) {
-        const uint32_t key = event_key(ev[i]);
-        /* Counters in registers: an array indexed by the kind would chain
-         * its increments through memory. */
-        uint32_t e_eq = 0, p_eq = 0;
-        size_t j = i;
-        do {
-            const int kind = event_kind(ev[j]);
-            e_eq += kind == EV_END;
-            p_eq += kind == EV_PLANAR;
-        } while (++j < m && event_key(ev[j]) == key);
-        const uint32_t s_eq = (uint32_t)(j - i) - e_eq - p_eq;
-        const float pos = key_float(key);
-        if (pos > box[axis] && pos < box[axis + 3]) {
-            const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
-            const uint32_t nl0 = s_lt + p_lt, nr0 = (np_total - e_lt - e_eq) + (p_total - p_lt - p_eq);
-            /* Without planar events both sides cost the same. */
-            for (int side = 1; side >= (p_eq ? 0 : 1); --side) {
-                const uint32_t nl = nl0 + (side ? p_eq : 0), nr = nr0 + (side ? 0 : p_eq);
-                const double lambda = (nl == 0 || nr == 0) ? 0.8 : 1.0;
-                const double cost = lambda * (ct + ci * (al * nl + ar * nr));
-                if (cost < b->cost) {
-                    b->cost = cost;
-                    b->pos = pos;
-                    b->planar_left = side;
-                    b->found = 1;
-                }
-            }
+    const float face_f = (float)face, rim_f = (float)rim, lo_f = box[axis], hi_f = box[axis + 3];
+    const float ct_f = (float)ct, ci_f = (float)ci;
+    /* Costs far from 1 could leave single precision's range: then every
+     * group is priced exactly. */
+    const int filter = ci >= 1e-12 && ci <= 1e12 && ct <= 1e12 && (ct == 0.0 || ct >= 1e-12);
+    const uint32_t key_lo = float_key(box[axis]), key_hi = float_key(box[axis + 3]);
+    double best = cj->limit, threshold = best * (1.0 + SWEEP_MARGIN);
+    float best_pos = 0.0f;
+    int best_planar_left = 0, found = 0;
+    sweep_chunk g;
+    g.key_events[0] = g.counts[0] = 0;
+    uint64_t counts = 0;
+    for (size_t c = 0; c < m; c += SWEEP_CHUNK) {
+        const size_t c_end = m - c < SWEEP_CHUNK ? m : c + SWEEP_CHUNK;
+        size_t k = 1;
+        uint64_t e = ev[c];
+        for (size_t i = c; i < c_end; ++i) {
+            const uint64_t next = ev[i + 1]; /* the sentinel ends the last group */
+            counts += sweep_count_step[event_kind(e)];
+            g.key_events[k] = (e & 0xffffffff00000000u) | (uint32_t)(i + 1);
+            g.counts[k] = counts;
+            k += event_key(next) != event_key(e);
+            e = next;
         }
-        s_lt += s_eq;
-        e_lt += e_eq;
-        p_lt += p_eq;
-        i = j;
+        /* Below: the references that start or lie before the plane; above:
+         * those that end or lie after it; the group's planar ones go to one
+         * side or the other. */
+        for (size_t q = 1; q < k; ++q) {
+            const uint32_t key = (uint32_t)(g.key_events[q] >> 32);
+            const uint32_t bits = (key & 0x80000000u) ? key & 0x7fffffffu : ~key;
+            float pos;
+            memcpy(&pos, &bits, sizeof pos);
+            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1];
+            const uint32_t p_eq = (uint32_t)(g.counts[q] >> 32) - (uint32_t)(g.counts[q - 1] >> 32);
+            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32));
+            const float al = face_f + rim_f * (pos - lo_f), ar = face_f + rim_f * (hi_f - pos);
+            const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
+            const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
+            const float lambda_r = (nl0 == 0 || nr == 0) ? 0.8f : 1.0f;
+            const float cost_l = lambda_l * (ct_f + ci_f * (al * (float)nl + ar * (float)nr0));
+            const float cost_r = lambda_r * (ct_f + ci_f * (al * (float)nl0 + ar * (float)nr));
+            const float cost = cost_l < cost_r ? cost_l : cost_r;
+            g.cost[q] = (key > key_lo && key < key_hi) ? cost : INFINITY;
+        }
+        /* Only groups near the chunk's lowest can hold its best plane. */
+        float low[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
+        for (size_t q = 1; q < k; ++q) low[q & 3] = g.cost[q] < low[q & 3] ? g.cost[q] : low[q & 3];
+        const float chunk_low = fminf(fminf(low[0], low[1]), fminf(low[2], low[3]));
+        const double chunk_threshold = (double)chunk_low * (1.0 + SWEEP_MARGIN);
+        if (chunk_threshold < threshold) threshold = chunk_threshold;
+        for (size_t q = 1; q < k; ++q) {
+            const uint32_t key = (uint32_t)(g.key_events[q] >> 32);
+            if (!(key > key_lo && key < key_hi) || (filter && !((double)g.cost[q] <= threshold))) continue;
+            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1];
+            const uint32_t p_eq = (uint32_t)(g.counts[q] >> 32) - (uint32_t)(g.counts[q - 1] >> 32);
+            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32));
+            const float pos = key_float(key);
+            const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
+            /* The group's planar triangles below first, then above (without
+             * any, both cost the same and the second is never lower). */
+            const uint32_t nl = nl0 + p_eq;
+            const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
+            const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
+            if (cost < best) {
+                best = cost;
+                best_pos = pos;
+                best_planar_left = 1;
+                found = 1;
+            }
+            const uint32_t nr = nr0 + p_eq;
+            const double lambda_r = (nl0 == 0 || nr == 0) ? 0.8 : 1.0;
+            const double cost_r = lambda_r * (ct + ci * (al * nl0 + ar * nr));
+            if (cost_r < best) {
+                best = cost_r;
+                best_pos = pos;
+                best_planar_left = 0;
+                found = 1;
+            }
+            if (best * (1.0 + SWEEP_MARGIN) < threshold) threshold = best * (1.0 + SWEEP_MARGIN);
+        }
+        g.key_events[0] = g.key_events[k - 1];
+        g.counts[0] = g.counts[k - 1];
     }
+    b->cost = best;
+    b->pos = best_pos;
+    b->planar_left = best_planar_left;
+    b->found = found;
 }
 
 static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t n, const float box[6],
