@@ -495,6 +495,46 @@ static void emit(const kd_tmp *t, kd_emit *e)
     emit(t->child[1], e);
 }
 
+#define KD_INIT_CHUNKS 256
+
+typedef struct kd_init_job {
+    const as_mesh_t *mesh;
+    kd_ref *refs;
+    unsigned chunks;
+    uint32_t offset[KD_INIT_CHUNKS];
+    float box[KD_INIT_CHUNKS][6];
+} kd_init_job;
+
+static void init_chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first, uint32_t *end)
+{
+    *first = (uint32_t)((uint64_t)total * i / n);
+    *end = (uint32_t)((uint64_t)total * (i + 1) / n);
+}
+
+static void init_fill(void *user, unsigned ch, unsigned chunks)
+{
+    kd_init_job *job = user;
+    const as_mesh_t *mesh = job->mesh;
+    uint32_t first, end, k = job->offset[ch];
+    init_chunk_range(mesh->triangle_count, ch, chunks, &first, &end);
+    float box[6] = {FLT_MAX, FLT_MAX, FLT_MAX, -FLT_MAX, -FLT_MAX, -FLT_MAX};
+    for (uint32_t i = first; i < end; ++i) {
+        if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
+        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
+        const float *v[3] = {mesh->positions + 3 * (size_t)ix[0], mesh->positions + 3 * (size_t)ix[1],
+                             mesh->positions + 3 * (size_t)ix[2]};
+        kd_ref *r = &job->refs[k++];
+        r->id = i;
+        for (int a = 0; a < 3; ++a) {
+            r->lo[a] = fminf(v[0][a], fminf(v[1][a], v[2][a]));
+            r->hi[a] = fmaxf(v[0][a], fmaxf(v[1][a], v[2][a]));
+            if (r->lo[a] < box[a]) box[a] = r->lo[a];
+            if (r->hi[a] > box[a + 3]) box[a + 3] = r->hi[a];
+        }
+    }
+    memcpy(job->box[ch], box, sizeof box);
+}
+
 as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd_builder_ops *ops, as_structure_t *s)
 {
     const double t_start = as_now_ms();
@@ -508,34 +548,38 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     if (!(args->split_budget >= 1.0f))
         return as_set_error(AS_ERROR_INVALID_ARGUMENT, "KD split budget %g must be at least 1", (double)args->split_budget);
 
+    /* Zero-area triangles stay in TRIS but get no reference. The references
+     * are filled in contiguous chunks, one per thread, each starting where
+     * the earlier chunks' end (the mesh's bits count the zero-area ones), so
+     * they keep the source order. */
+    const unsigned threads = as_thread_count(args->thread_count);
+    kd_init_job init;
+    memset(&init, 0, sizeof init);
+    init.mesh = mesh;
+    init.chunks = mesh->triangle_count >= 65536 ? threads : 1;
+    if (init.chunks > KD_INIT_CHUNKS) init.chunks = KD_INIT_CHUNKS;
     uint32_t n = 0;
-    for (uint32_t i = 0; i < mesh->triangle_count; ++i) n += !as_mesh_triangle_is_degenerate(mesh, i);
-    kd_ref *refs = malloc(sizeof(kd_ref) * (n ? n : 1));
-    as_tri4_t *tris = as_aligned_alloc(sizeof(as_tri4_t) * (mesh->triangle_count ? mesh->triangle_count : 1), "KD TRIS");
-    if (!refs || !tris) {
-        free(refs);
+    for (unsigned ch = 0; ch < init.chunks; ++ch) {
+        uint32_t first, end;
+        init_chunk_range(mesh->triangle_count, ch, init.chunks, &first, &end);
+        init.offset[ch] = n;
+        n += end - first - as_mesh_degenerate_in_range(mesh, first, end);
+    }
+    init.refs = as_block_take(sizeof(kd_ref) * (n ? n : 1), 0, "KD references");
+    as_tri4_t *tris = as_spatial_tris(mesh, threads);
+    if (!init.refs || !tris) {
+        free(init.refs);
         free(tris);
         return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory building a KD tree");
     }
+    as_parallel_run(init.chunks, init_fill, &init);
+    kd_ref *refs = init.refs;
     float box[6] = {FLT_MAX, FLT_MAX, FLT_MAX, -FLT_MAX, -FLT_MAX, -FLT_MAX};
-    uint32_t k = 0;
-    for (uint32_t i = 0; i < mesh->triangle_count; ++i) {
-        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
-        const float *v[3] = {mesh->positions + 3 * (size_t)ix[0], mesh->positions + 3 * (size_t)ix[1],
-                             mesh->positions + 3 * (size_t)ix[2]};
-        tris[i].v0 = (as_f4_t){v[0][0], v[0][1], v[0][2], as_uint_as_float(i)};
-        tris[i].v1 = (as_f4_t){v[1][0], v[1][1], v[1][2], 0.0f};
-        tris[i].v2 = (as_f4_t){v[2][0], v[2][1], v[2][2], 0.0f};
-        if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
-        kd_ref *r = &refs[k++];
-        r->id = i;
-        for (int a = 0; a < 3; ++a) {
-            r->lo[a] = fminf(v[0][a], fminf(v[1][a], v[2][a]));
-            r->hi[a] = fmaxf(v[0][a], fmaxf(v[1][a], v[2][a]));
-            if (r->lo[a] < box[a]) box[a] = r->lo[a];
-            if (r->hi[a] > box[a + 3]) box[a + 3] = r->hi[a];
+    for (unsigned ch = 0; ch < init.chunks; ++ch)
+        for (int k = 0; k < 3; ++k) {
+            if (init.box[ch][k] < box[k]) box[k] = init.box[ch][k];
+            if (init.box[ch][k + 3] > box[k + 3]) box[k + 3] = init.box[ch][k + 3];
         }
-    }
     if (n == 0) memset(box, 0, sizeof box);
 
     kd_ctx ctx = {args, mesh, ops, 0, tris};
@@ -555,7 +599,6 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     kd_tmp *root = NULL;
     kd_task first = {refs, n, root_state, {0}, 0, (double)args->split_budget * (double)n, 1.0, &root};
     memcpy(first.box, box, sizeof box);
-    const unsigned threads = as_thread_count(args->thread_count);
     if (threads < 2 || n < 2 * PARALLEL_MIN_REFS || !as_task_pool_run(threads, sizeof first, &first, build_task, &run))
         build_task(NULL, &first, &run);
     pthread_mutex_destroy(&run.lock);
@@ -599,7 +642,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     s->meta.split_budget = args->split_budget;
     as_structure_add_section(s, ASF_TAG_KDN8, nodes, kc.nodes, sizeof(as_kd_node_t));
     as_structure_add_section(s, ASF_TAG_PRIM, prim, kc.leaves + kc.refs, sizeof(uint32_t));
-    as_structure_add_section(s, ASF_TAG_TRIS, tris, mesh->triangle_count, sizeof(as_tri4_t));
+    as_spatial_add_tris(s, tris, mesh->triangle_count);
     s->meta.sah_cost = as_kd_sah_cost(s);
     if (args->layout == AS_LAYOUT_KD_ROPES) {
         const as_error_t err = as_kd_add_ropes(s);

@@ -183,38 +183,87 @@ static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t inde
     return 2;
 }
 
+/* The root's lists: each axis's references in two halves (so that two
+ * threads share three axes evenly), each half's events made and sorted on
+ * their own, then the halves merged. The merged list is the one sorting all
+ * at once gives: the events are ordered by their whole word. */
+#define ROOT_HALVES 2
+
 typedef struct root_job {
     const kd_ref *refs;
     uint32_t n;
     sah_events *e;
+    uint64_t *runs[3];                   /* per axis: both halves' sorted events, each ending in a sentinel */
+    size_t run_count[3][ROOT_HALVES];
+    uint32_t planar[3][ROOT_HALVES];
     atomic_int failed;
 } root_job;
 
-static void root_axis_events(void *user, int a)
+static void root_half_range(uint32_t n, int h, uint32_t *first, uint32_t *end)
+{
+    *first = (uint32_t)((uint64_t)n * (unsigned)h / ROOT_HALVES);
+    *end = (uint32_t)((uint64_t)n * (unsigned)(h + 1) / ROOT_HALVES);
+}
+
+static void root_sort_half(void *user, unsigned i, unsigned count)
 {
     root_job *r = user;
-    uint64_t *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(r->n ? r->n : 1));
-    if (!tmp) {
-        atomic_store(&r->failed, 1);
-        return;
+    for (unsigned piece = i; piece < 3 * ROOT_HALVES; piece += count) {
+        const int a = (int)(piece % 3), h = (int)(piece / 3);
+        uint32_t first, end;
+        root_half_range(r->n, h, &first, &end);
+        uint64_t *out = r->runs[a] + 2 * (size_t)first + (size_t)h; /* room for the earlier halves' sentinels */
+        uint64_t *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(end > first ? end - first : 1));
+        if (!tmp) {
+            atomic_store(&r->failed, 1);
+            return;
+        }
+        size_t m = 0;
+        uint32_t planar = 0;
+        for (uint32_t k = first; k < end; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id, &planar);
+        sort_events(out, tmp, m);
+        out[m] = UINT64_MAX;
+        free(tmp);
+        r->run_count[a][h] = m;
+        r->planar[a][h] = planar;
     }
-    sah_events *e = r->e;
-    size_t m = 0;
-    for (uint32_t i = 0; i < r->n; ++i) m += put_events(e->list[a] + m, &r->refs[i], a, r->refs[i].id, &e->planar[a]);
-    sort_events(e->list[a], tmp, m);
-    e->count[a] = m;
-    e->list[a][m] = UINT64_MAX;
-    free(tmp);
+}
+
+static void root_merge_axis(void *user, int a)
+{
+    root_job *r = user;
+    uint32_t first1, end1;
+    root_half_range(r->n, 1, &first1, &end1);
+    const uint64_t *x = r->runs[a], *y = r->runs[a] + 2 * (size_t)first1 + 1;
+    uint64_t *out = r->e->list[a];
+    const size_t m = r->run_count[a][0] + r->run_count[a][1];
+    for (size_t k = 0; k < m; ++k) out[k] = *x < *y ? *x++ : *y++;
+    out[m] = UINT64_MAX;
+    r->e->count[a] = m;
+    r->e->planar[a] = r->planar[a][0] + r->planar[a][1];
 }
 
 static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
 {
     if (c->mesh->triangle_count > (uint64_t)EV_INDEX_MASK + 1) return NULL;
     sah_events *e = events_alloc(2 * (size_t)n);
-    if (!e) return NULL;
+    uint64_t *runs = malloc(sizeof(uint64_t) * 3 * (2 * (size_t)n + ROOT_HALVES));
+    if (!e || !runs) {
+        free(e);
+        free(runs);
+        return NULL;
+    }
     e->root_n = n;
-    root_job r = {refs, n, e, 0};
-    for_each_axis(axis_threads(c, e, n), root_axis_events, &r);
+    root_job r;
+    memset(&r, 0, sizeof r);
+    r.refs = refs;
+    r.n = n;
+    r.e = e;
+    for (int a = 0; a < 3; ++a) r.runs[a] = runs + (size_t)a * (2 * (size_t)n + ROOT_HALVES);
+    const unsigned threads = as_thread_count(c->args->thread_count);
+    as_parallel_run(threads < 2 ? 1 : (threads < 3 * ROOT_HALVES ? threads : 3 * ROOT_HALVES), root_sort_half, &r);
+    if (!atomic_load(&r.failed)) for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
+    free(runs);
     if (atomic_load(&r.failed)) {
         free(e);
         return NULL;
