@@ -116,6 +116,7 @@ typedef struct sah_events {
     size_t count[3];
     uint32_t planar[3]; /* planar events per axis */
     uint32_t root_n;    /* references at the root */
+    size_t block_bytes; /* from as_block_take (the nodes near the root), else 0: malloc */
 } sah_events;
 
 /* The three axes' work runs on threads of its own in a node that holds
@@ -152,14 +153,21 @@ static void for_each_axis(unsigned threads, void (*fn)(void *user, int axis), vo
     as_parallel_run(threads, axis_job_run, &j);
 }
 
+#define EVENTS_BLOCK_MIN ((size_t)4 << 20)
+
 /* Each list has one spare slot: the children's lists are filled by writing
  * every event and advancing only past the kept ones, and a finished list
  * ends there with a sentinel above every event (UINT64_MAX, whose key no
  * finite position has), so the sweep can read one event past the last. */
 static sah_events *events_alloc(size_t per_axis)
 {
-    sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + 1));
+    /* The big lists near the root come from the blocks earlier builds gave
+     * back, on huge pages: fresh ones cost a page fault per 4 KB. */
+    const size_t bytes = sizeof(sah_events) + sizeof(uint64_t) * 3 * (per_axis + 1);
+    const int block = bytes >= EVENTS_BLOCK_MIN;
+    sah_events *e = block ? as_block_take(bytes, 1, "KD event lists") : malloc(bytes);
     if (!e) return NULL;
+    e->block_bytes = block ? bytes : 0;
     uint64_t *base = (uint64_t *)(e + 1);
     for (int a = 0; a < 3; ++a) {
         e->list[a] = base + (size_t)a * (per_axis + 1);
@@ -167,6 +175,13 @@ static sah_events *events_alloc(size_t per_axis)
         e->planar[a] = 0;
     }
     return e;
+}
+
+static void events_free(void *state)
+{
+    sah_events *e = state;
+    if (e && e->block_bytes) as_block_give(e, e->block_bytes, 1);
+    else free(e);
 }
 
 /* Appends the events of reference `r` (index `index`) on `axis`. */
@@ -194,9 +209,9 @@ typedef struct root_job {
     uint32_t n;
     sah_events *e;
     uint64_t *runs[3];                   /* per axis: both halves' sorted events, each ending in a sentinel */
+    uint64_t *scratch[3];                /* the sorts' scratch, as long as runs */
     size_t run_count[3][ROOT_HALVES];
     uint32_t planar[3][ROOT_HALVES];
-    atomic_int failed;
 } root_job;
 
 static void root_half_range(uint32_t n, int h, uint32_t *first, uint32_t *end)
@@ -212,18 +227,15 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
         const int a = (int)(piece % 3), h = (int)(piece / 3);
         uint32_t first, end;
         root_half_range(r->n, h, &first, &end);
-        uint64_t *out = r->runs[a] + 2 * (size_t)first + (size_t)h; /* room for the earlier halves' sentinels */
-        uint64_t *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(end > first ? end - first : 1));
-        if (!tmp) {
-            atomic_store(&r->failed, 1);
-            return;
-        }
+        /* Room for the earlier halves' sentinels; the sort's scratch is the
+         * same place in the scratch block. */
+        const size_t at = 2 * (size_t)first + (size_t)h;
+        uint64_t *out = r->runs[a] + at, *tmp = r->scratch[a] + at;
         size_t m = 0;
         uint32_t planar = 0;
         for (uint32_t k = first; k < end; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id, &planar);
         sort_events(out, tmp, m);
         out[m] = UINT64_MAX;
-        free(tmp);
         r->run_count[a][h] = m;
         r->planar[a][h] = planar;
     }
@@ -247,9 +259,10 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
 {
     if (c->mesh->triangle_count > (uint64_t)EV_INDEX_MASK + 1) return NULL;
     sah_events *e = events_alloc(2 * (size_t)n);
-    uint64_t *runs = malloc(sizeof(uint64_t) * 3 * (2 * (size_t)n + ROOT_HALVES));
+    const size_t per_axis = 2 * (size_t)n + ROOT_HALVES, bytes = sizeof(uint64_t) * 6 * per_axis;
+    uint64_t *runs = as_block_take(bytes, 1, "KD root event runs");
     if (!e || !runs) {
-        free(e);
+        events_free(e);
         free(runs);
         return NULL;
     }
@@ -259,15 +272,14 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
     r.refs = refs;
     r.n = n;
     r.e = e;
-    for (int a = 0; a < 3; ++a) r.runs[a] = runs + (size_t)a * (2 * (size_t)n + ROOT_HALVES);
+    for (int a = 0; a < 3; ++a) {
+        r.runs[a] = runs + (size_t)a * per_axis;
+        r.scratch[a] = runs + (size_t)(3 + a) * per_axis;
+    }
     const unsigned threads = as_thread_count(c->args->thread_count);
     as_parallel_run(threads < 2 ? 1 : (threads < 3 * ROOT_HALVES ? threads : 3 * ROOT_HALVES), root_sort_half, &r);
-    if (!atomic_load(&r.failed)) for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
-    free(runs);
-    if (atomic_load(&r.failed)) {
-        free(e);
-        return NULL;
-    }
+    for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
+    as_block_give(runs, bytes, 1);
     return e;
 }
 
@@ -354,8 +366,8 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratc
     const size_t per_axis = 2 * (nc0 + nc1) + 2 + 2 * (nc0 > nc1 ? nc0 : nc1);
     uint64_t *fresh = kd_scratch_reserve(how, sizeof(uint64_t) * per_axis * (threads > 1 ? 3 : 1));
     if (!cj.e[0] || !cj.e[1] || !fresh) {
-        free(cj.e[0]);
-        free(cj.e[1]);
+        events_free(cj.e[0]);
+        events_free(cj.e[1]);
         out[0] = out[1] = NULL;
         return 0;
     }
@@ -481,7 +493,8 @@ static void sweep_axis(void *user, int axis)
         /* Only groups near the chunk's lowest can hold its best plane. */
         float low[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
         for (size_t q = 1; q < k; ++q) low[q & 3] = g.cost[q] < low[q & 3] ? g.cost[q] : low[q & 3];
-        const float chunk_low = fminf(fminf(low[0], low[1]), fminf(low[2], low[3]));
+        const float low01 = low[0] < low[1] ? low[0] : low[1], low23 = low[2] < low[3] ? low[2] : low[3];
+        const float chunk_low = low01 < low23 ? low01 : low23;
         const double chunk_threshold = (double)chunk_low * (1.0 + SWEEP_MARGIN);
         if (chunk_threshold < threshold) threshold = chunk_threshold;
         for (size_t q = 1; q < k; ++q) {
@@ -557,6 +570,6 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
 
 as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
 {
-    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, free};
+    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, events_free};
     return kd_build(mesh, args, &ops, s);
 }
