@@ -40,6 +40,8 @@
 #include <string.h>
 
 #define PARALLEL_MIN_REFS 4096
+#define PARTITION_MIN_REFS 32768
+#define KD_PARTITION_CHUNKS 64
 
 typedef struct kd_tmp {
     struct kd_tmp *child[2];   /* NULL for a leaf */
@@ -338,6 +340,128 @@ static int goes_right(const kd_ref *r, const kd_split *s)
     return hi >= s->pos;
 }
 
+/* Where a node's references go: both children's arrays, the indices of
+ * the clipped ones in them, and for the SAH builder a byte per triangle
+ * saying which child keeps its events (KD_KEEP_*). */
+typedef struct kd_partition {
+    const kd_ctx *c;
+    const kd_ref *refs;
+    const kd_split *sp;
+    kd_ref *out[2];
+    uint32_t at[2], clipped_at[2]; /* the whole node's counts, after partition_range or partition_in_chunks */
+    uint32_t *clipped[2];          /* NULL: not recorded */
+    uint8_t *side;                 /* NULL: not recorded */
+    uint32_t n;
+    unsigned chunks;
+    float box[2][6];
+    /* partition_in_chunks: each chunk's counts, then where it writes. */
+    uint32_t (*chunk_at)[4];
+} kd_partition;
+
+/* References [begin, end) into the children, from at[] and clipped_at[]
+ * on; the counts are advanced. */
+static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint32_t at[2], uint32_t clipped_at[2])
+{
+    const kd_split *sp = p->sp;
+    for (uint32_t i = begin; i < end; ++i) {
+        const kd_ref *r = &p->refs[i];
+        unsigned keep = 0;
+        if (goes_left(r, sp)) {
+            if (r->hi[sp->axis] > sp->pos) {
+                clip_ref(p->c->tris, r, p->box[0], &p->out[0][at[0]]);
+                if (p->clipped[0]) p->clipped[0][clipped_at[0]] = at[0];
+                ++clipped_at[0];
+            } else {
+                p->out[0][at[0]] = *r;
+                keep |= KD_KEEP_LEFT;
+            }
+            ++at[0];
+        }
+        if (goes_right(r, sp)) {
+            if (r->lo[sp->axis] < sp->pos) {
+                clip_ref(p->c->tris, r, p->box[1], &p->out[1][at[1]]);
+                if (p->clipped[1]) p->clipped[1][clipped_at[1]] = at[1];
+                ++clipped_at[1];
+            } else {
+                p->out[1][at[1]] = *r;
+                keep |= KD_KEEP_RIGHT;
+            }
+            ++at[1];
+        }
+        if (p->side) p->side[r->id] = (uint8_t)keep;
+    }
+}
+
+/* A big node's partition on the build's threads: contiguous chunks, each
+ * counted, then each written from where the chunks before it end, so the
+ * children's arrays are those of one pass. */
+static unsigned partition_chunks(const kd_ctx *c, uint32_t n)
+{
+    const unsigned threads = as_thread_count(c->args->thread_count);
+    if (threads < 2 || n < PARTITION_MIN_REFS) return 1;
+    unsigned chunks = threads * 2;
+    if (chunks > KD_PARTITION_CHUNKS) chunks = KD_PARTITION_CHUNKS;
+    return chunks;
+}
+
+static void chunk_bounds(uint32_t n, unsigned i, unsigned chunks, uint32_t *begin, uint32_t *end)
+{
+    *begin = (uint32_t)((uint64_t)n * i / chunks);
+    *end = (uint32_t)((uint64_t)n * (i + 1) / chunks);
+}
+
+static void partition_count_chunk(void *user, unsigned i, unsigned n)
+{
+    kd_partition *p = user;
+    (void)n;
+    const kd_split *sp = p->sp;
+    uint32_t begin, end, nl = 0, nr = 0, cl = 0, cr = 0;
+    chunk_bounds(p->n, i, p->chunks, &begin, &end);
+    for (uint32_t k = begin; k < end; ++k) {
+        const kd_ref *r = &p->refs[k];
+        const unsigned l = (unsigned)goes_left(r, sp), rt = (unsigned)goes_right(r, sp);
+        nl += l;
+        nr += rt;
+        cl += l & (r->hi[sp->axis] > sp->pos);
+        cr += rt & (r->lo[sp->axis] < sp->pos);
+    }
+    p->chunk_at[i][0] = nl;
+    p->chunk_at[i][1] = nr;
+    p->chunk_at[i][2] = cl;
+    p->chunk_at[i][3] = cr;
+}
+
+static void partition_fill_chunk(void *user, unsigned i, unsigned n)
+{
+    kd_partition *p = user;
+    (void)n;
+    uint32_t begin, end;
+    chunk_bounds(p->n, i, p->chunks, &begin, &end);
+    uint32_t at[2] = {p->chunk_at[i][0], p->chunk_at[i][1]}, clipped_at[2] = {p->chunk_at[i][2], p->chunk_at[i][3]};
+    partition_range(p, begin, end, at, clipped_at);
+}
+
+static void partition_in_chunks(kd_partition *p, uint32_t n, unsigned chunks)
+{
+    uint32_t chunk_at[KD_PARTITION_CHUNKS][4];
+    p->n = n;
+    p->chunks = chunks;
+    p->chunk_at = chunk_at;
+    as_parallel_run(chunks, partition_count_chunk, p);
+    uint32_t sum[4] = {0, 0, 0, 0};
+    for (unsigned i = 0; i < chunks; ++i)
+        for (int k = 0; k < 4; ++k) {
+            const uint32_t v = p->chunk_at[i][k];
+            p->chunk_at[i][k] = sum[k];
+            sum[k] += v;
+        }
+    as_parallel_run(chunks, partition_fill_chunk, p);
+    p->at[0] = sum[0];
+    p->at[1] = sum[1];
+    p->clipped_at[0] = sum[2];
+    p->clipped_at[1] = sum[3];
+}
+
 /* Builds the subtree of task t: recurses into the left child and loops on
  * the right one, and hands the right child to an idle thread when it is big
  * enough to be worth it. */
@@ -380,33 +504,20 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         memcpy(rbox, box, sizeof rbox);
         lbox[sp.axis + 3] = sp.pos;
         rbox[sp.axis] = sp.pos;
-        uint32_t il = 0, ir = 0, cl = 0, cr = 0;
-        uint8_t *const side = hand_down ? sc->side : NULL;
-        for (uint32_t i = 0; i < n; ++i) {
-            const kd_ref *r = &refs[i];
-            unsigned keep = 0;
-            if (goes_left(r, &sp)) {
-                if (r->hi[sp.axis] > sp.pos) {
-                    clip_ref(c->tris, r, lbox, &lr[il]);
-                    if (hand_down) sc->clipped[0][cl++] = il;
-                } else {
-                    lr[il] = *r;
-                    keep |= KD_KEEP_LEFT;
-                }
-                ++il;
-            }
-            if (goes_right(r, &sp)) {
-                if (r->lo[sp.axis] < sp.pos) {
-                    clip_ref(c->tris, r, rbox, &rr[ir]);
-                    if (hand_down) sc->clipped[1][cr++] = ir;
-                } else {
-                    rr[ir] = *r;
-                    keep |= KD_KEEP_RIGHT;
-                }
-                ++ir;
-            }
-            if (side) side[r->id] = (uint8_t)keep;
+        kd_partition part = {.c = c, .refs = refs, .sp = &sp, .out = {lr, rr}, .side = hand_down ? sc->side : NULL};
+        memcpy(part.box[0], lbox, sizeof lbox);
+        memcpy(part.box[1], rbox, sizeof rbox);
+        if (hand_down) {
+            part.clipped[0] = sc->clipped[0];
+            part.clipped[1] = sc->clipped[1];
         }
+        const unsigned chunks = partition_chunks(c, n);
+        if (chunks > 1) {
+            partition_in_chunks(&part, n, chunks);
+        } else {
+            partition_range(&part, 0, n, part.at, part.clipped_at);
+        }
+        const uint32_t cl = part.clipped_at[0], cr = part.clipped_at[1];
         void *child_state[2] = {NULL, NULL};
         if (hand_down) {
             const kd_ref *const child_refs[2] = {lr, rr};

@@ -124,11 +124,27 @@ typedef struct sah_events {
  * big child of an uneven split (an empty-space cut near the root leaves
  * nearly everything on one side), where the other subtrees cannot keep the
  * threads busy. The axes' results do not depend on which thread ran them. */
+#define PIECES_MAX 32
+#define PIECE_MIN_EVENTS 16384
+
 static unsigned axis_threads(const kd_ctx *c, const sah_events *e, uint32_t n)
 {
     const unsigned threads = as_thread_count(c->args->thread_count);
     if (threads < 2 || (uint64_t)n * threads <= e->root_n) return 1;
     return threads < 3 ? threads : 3;
+}
+
+/* With more threads than axes, a big node's lists are taken in pieces, so
+ * that every thread has work: as many per axis as threads, each of at least
+ * PIECE_MIN_EVENTS events. */
+static unsigned pieces_per_axis(const kd_ctx *c, const sah_events *e, uint32_t n)
+{
+    const unsigned threads = as_thread_count(c->args->thread_count);
+    if (threads <= 3 || (uint64_t)n * threads <= e->root_n) return 1;
+    uint64_t per = (2 * (uint64_t)n) / PIECE_MIN_EVENTS;
+    if (per > threads) per = threads;
+    if (per > PIECES_MAX) per = PIECES_MAX;
+    return per < 2 ? 1 : (unsigned)per;
 }
 
 typedef struct axis_job {
@@ -346,6 +362,167 @@ static void child_axis_events(void *user, int a)
     e[1]->planar[a] = planar[1];
 }
 
+/* A big node's children's lists on many threads: the clipped references'
+ * events made and sorted per axis and side, then each axis's parent list
+ * in pieces. A piece takes the fresh events that the one-pass merge would
+ * put among its events (those from the last event of the piece before, not
+ * below the next piece's), its kept events are counted, and each piece
+ * writes from where the pieces before it end: the lists are those of the
+ * one-pass merge. */
+typedef struct child_pieces {
+    child_job *cj;
+    unsigned per_axis;
+    uint64_t *fresh[3][2], *tmp[3][2]; /* sorted, ending in a sentinel; the sorts' scratch */
+    size_t fresh_n[3][2];
+    uint32_t fresh_planar[3][2];
+    size_t begin[3][PIECES_MAX + 1];          /* the pieces of the parent's list */
+    size_t cut[3][2][PIECES_MAX + 1];         /* the pieces of the fresh lists */
+    size_t at[3][2][PIECES_MAX + 1];          /* kept counts, then where each piece writes */
+    uint32_t planar[3][2][PIECES_MAX];
+} child_pieces;
+
+static void child_fresh_sort(void *user, unsigned i, unsigned n)
+{
+    child_pieces *cp = user;
+    const kd_scratch *how = cp->cj->how;
+    for (unsigned job = i; job < 6; job += n) {
+        const int a = (int)(job % 3), side = (int)(job / 3);
+        uint64_t *out = cp->fresh[a][side];
+        size_t nf = 0;
+        uint32_t planar = 0;
+        for (uint32_t k = 0; k < how->clipped_n[side]; ++k) {
+            const kd_ref *r = &cp->cj->child_refs[side][how->clipped[side][k]];
+            nf += put_events(out + nf, r, a, r->id, &planar);
+        }
+        sort_events(out, cp->tmp[a][side], nf);
+        out[nf] = UINT64_MAX;
+        cp->fresh_n[a][side] = nf;
+        cp->fresh_planar[a][side] = planar;
+    }
+}
+
+/* The first of the n sorted events that is not below x. */
+static size_t events_lower_bound(const uint64_t *ev, size_t n, uint64_t x)
+{
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (ev[mid] < x) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+static void child_piece_count(void *user, unsigned i, unsigned n)
+{
+    child_pieces *cp = user;
+    const uint8_t *const keep = cp->cj->how->side;
+    for (unsigned job = i; job < 3 * cp->per_axis; job += n) {
+        const int a = (int)(job % 3);
+        const unsigned piece = job / 3;
+        const uint64_t *src = cp->cj->parent->list[a];
+        size_t k0 = 0, k1 = 0;
+        uint32_t p0 = 0, p1 = 0;
+        for (size_t k = cp->begin[a][piece]; k < cp->begin[a][piece + 1]; ++k) {
+            const unsigned f = keep[event_index(src[k])], is_planar = event_kind(src[k]) == EV_PLANAR;
+            const unsigned l = f & KD_KEEP_LEFT, r = (f & KD_KEEP_RIGHT) >> 1;
+            k0 += l;
+            k1 += r;
+            p0 += l & is_planar;
+            p1 += r & is_planar;
+        }
+        cp->at[a][0][piece] = k0;
+        cp->at[a][1][piece] = k1;
+        cp->planar[a][0][piece] = p0;
+        cp->planar[a][1][piece] = p1;
+    }
+}
+
+static void child_piece_merge(void *user, unsigned i, unsigned n)
+{
+    child_pieces *cp = user;
+    const uint8_t *const keep = cp->cj->how->side;
+    for (unsigned job = i; job < 3 * cp->per_axis; job += n) {
+        const int a = (int)(job % 3);
+        const unsigned piece = job / 3;
+        const uint64_t *src = cp->cj->parent->list[a];
+        uint64_t *const o0 = cp->cj->e[0]->list[a], *const o1 = cp->cj->e[1]->list[a];
+        size_t n0 = cp->at[a][0][piece], n1 = cp->at[a][1][piece];
+        const uint64_t *f0 = cp->fresh[a][0] + cp->cut[a][0][piece], *f1 = cp->fresh[a][1] + cp->cut[a][1][piece];
+        const uint64_t *const f0_end = cp->fresh[a][0] + cp->cut[a][0][piece + 1];
+        const uint64_t *const f1_end = cp->fresh[a][1] + cp->cut[a][1][piece + 1];
+        /* Written only when kept: another piece writes right after this
+         * one's last event. */
+        for (size_t k = cp->begin[a][piece]; k < cp->begin[a][piece + 1]; ++k) {
+            const uint64_t ev = src[k];
+            const unsigned f = keep[event_index(ev)];
+            while (f0 < f0_end && *f0 < ev) o0[n0++] = *f0++;
+            while (f1 < f1_end && *f1 < ev) o1[n1++] = *f1++;
+            if (f & KD_KEEP_LEFT) o0[n0++] = ev;
+            if (f & KD_KEEP_RIGHT) o1[n1++] = ev;
+        }
+        while (f0 < f0_end) o0[n0++] = *f0++;
+        while (f1 < f1_end) o1[n1++] = *f1++;
+    }
+}
+
+static int child_events_in_pieces(child_job *cj, kd_scratch *how, unsigned threads, unsigned per_axis)
+{
+    child_pieces *cp = malloc(sizeof *cp);
+    const size_t nc[2] = {how->clipped_n[0], how->clipped_n[1]};
+    /* Per axis: both fresh lists with their sentinels, then both sorts'
+     * scratch. */
+    const size_t per_axis_words = 4 * (nc[0] + nc[1]) + 2;
+    uint64_t *buf = kd_scratch_reserve(how, sizeof(uint64_t) * 3 * per_axis_words);
+    if (!cp || !buf) {
+        free(cp);
+        return 0;
+    }
+    cp->cj = cj;
+    cp->per_axis = per_axis;
+    for (int a = 0; a < 3; ++a) {
+        uint64_t *b = buf + (size_t)a * per_axis_words;
+        cp->fresh[a][0] = b;
+        cp->fresh[a][1] = b + 2 * nc[0] + 1;
+        cp->tmp[a][0] = b + 2 * (nc[0] + nc[1]) + 2;
+        cp->tmp[a][1] = cp->tmp[a][0] + 2 * nc[0];
+    }
+    as_parallel_run(threads < 6 ? threads : 6, child_fresh_sort, cp);
+    for (int a = 0; a < 3; ++a) {
+        const uint64_t *src = cj->parent->list[a];
+        const size_t m = cj->parent->count[a];
+        for (unsigned piece = 0; piece <= per_axis; ++piece) cp->begin[a][piece] = m * piece / per_axis;
+        for (int side = 0; side < 2; ++side) {
+            cp->cut[a][side][0] = 0;
+            for (unsigned piece = 1; piece < per_axis; ++piece) {
+                const size_t b = cp->begin[a][piece];
+                cp->cut[a][side][piece] = b ? events_lower_bound(cp->fresh[a][side], cp->fresh_n[a][side], src[b - 1]) : 0;
+            }
+            cp->cut[a][side][per_axis] = cp->fresh_n[a][side];
+        }
+    }
+    as_parallel_run(threads, child_piece_count, cp);
+    for (int a = 0; a < 3; ++a)
+        for (int side = 0; side < 2; ++side) {
+            size_t at = 0;
+            uint32_t planar = cp->fresh_planar[a][side];
+            for (unsigned piece = 0; piece < per_axis; ++piece) {
+                const size_t kept = cp->at[a][side][piece];
+                cp->at[a][side][piece] = at;
+                at += kept + cp->cut[a][side][piece + 1] - cp->cut[a][side][piece];
+                planar += cp->planar[a][side][piece];
+            }
+            cp->at[a][side][per_axis] = at;
+            cj->e[side]->count[a] = at;
+            cj->e[side]->planar[a] = planar;
+        }
+    as_parallel_run(threads, child_piece_merge, cp);
+    for (int a = 0; a < 3; ++a)
+        for (int side = 0; side < 2; ++side) cj->e[side]->list[a][cj->e[side]->count[a]] = UINT64_MAX;
+    free(cp);
+    return 1;
+}
+
 /* The children's lists, one pass over the parent's events per axis feeding
  * both children. */
 static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratch *how, uint32_t parent_n,
@@ -359,24 +536,30 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratc
     cj.child_refs = child_refs;
     cj.e[0] = events_alloc(2 * (size_t)child_n[0]);
     cj.e[1] = events_alloc(2 * (size_t)child_n[1]);
-    const unsigned threads = axis_threads(c, p, parent_n);
-    const size_t nc0 = how->clipped_n[0], nc1 = how->clipped_n[1];
-    /* Per axis: both fresh lists with their sentinels, and the sort's
-     * scratch for the longer one. */
-    const size_t per_axis = 2 * (nc0 + nc1) + 2 + 2 * (nc0 > nc1 ? nc0 : nc1);
-    uint64_t *fresh = kd_scratch_reserve(how, sizeof(uint64_t) * per_axis * (threads > 1 ? 3 : 1));
-    if (!cj.e[0] || !cj.e[1] || !fresh) {
-        events_free(cj.e[0]);
-        events_free(cj.e[1]);
-        out[0] = out[1] = NULL;
-        return 0;
-    }
-    for (int a = 0; a < 3; ++a) cj.fresh[a] = threads > 1 ? fresh + (size_t)a * per_axis : fresh;
+    if (!cj.e[0] || !cj.e[1]) goto fail;
     cj.e[0]->root_n = cj.e[1]->root_n = p->root_n;
-    for_each_axis(threads, child_axis_events, &cj);
+    const unsigned pieces = pieces_per_axis(c, p, parent_n);
+    if (pieces > 1) {
+        if (!child_events_in_pieces(&cj, how, as_thread_count(c->args->thread_count), pieces)) goto fail;
+    } else {
+        const unsigned threads = axis_threads(c, p, parent_n);
+        const size_t nc0 = how->clipped_n[0], nc1 = how->clipped_n[1];
+        /* Per axis: both fresh lists with their sentinels, and the sort's
+         * scratch for the longer one. */
+        const size_t per_axis = 2 * (nc0 + nc1) + 2 + 2 * (nc0 > nc1 ? nc0 : nc1);
+        uint64_t *fresh = kd_scratch_reserve(how, sizeof(uint64_t) * per_axis * (threads > 1 ? 3 : 1));
+        if (!fresh) goto fail;
+        for (int a = 0; a < 3; ++a) cj.fresh[a] = threads > 1 ? fresh + (size_t)a * per_axis : fresh;
+        for_each_axis(threads, child_axis_events, &cj);
+    }
     out[0] = cj.e[0];
     out[1] = cj.e[1];
     return 1;
+fail:
+    events_free(cj.e[0]);
+    events_free(cj.e[1]);
+    out[0] = out[1] = NULL;
+    return 0;
 }
 
 static double half_area(const float b[6])
@@ -427,14 +610,15 @@ typedef struct sweep_chunk {
  * by kind. */
 static const uint64_t sweep_count_step[4] = {1, (uint64_t)1 << 32, 0, 0};
 
-static void sweep_axis(void *user, int axis)
+/* Sweeps events [begin, end) of the axis's list, which start a group and
+ * end one, with `ends0` END and `planars0` PLANAR events before them, into
+ * *b: the first plane of the lowest cost below the limit. */
+static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end, uint32_t ends0, uint32_t planars0,
+                        axis_best *b)
 {
-    choose_job *cj = user;
-    axis_best *b = &cj->best[axis];
     b->cost = cj->limit;
     b->found = 0;
     const float *box = cj->box;
-    if (!(box[axis + 3] > box[axis])) return;
     const double ct = cj->ct, ci = cj->ci, area = cj->area;
     const uint64_t *ev = cj->e->list[axis];
     const size_t m = cj->e->count[axis];
@@ -456,10 +640,11 @@ static void sweep_axis(void *user, int axis)
     float best_pos = 0.0f;
     int best_planar_left = 0, found = 0;
     sweep_chunk g;
-    g.key_events[0] = g.counts[0] = 0;
-    uint64_t counts = 0;
-    for (size_t c = 0; c < m; c += SWEEP_CHUNK) {
-        const size_t c_end = m - c < SWEEP_CHUNK ? m : c + SWEEP_CHUNK;
+    uint64_t counts = ((uint64_t)planars0 << 32) | ends0;
+    g.key_events[0] = begin;
+    g.counts[0] = counts;
+    for (size_t c = begin; c < end; c += SWEEP_CHUNK) {
+        const size_t c_end = end - c < SWEEP_CHUNK ? end : c + SWEEP_CHUNK;
         size_t k = 1;
         uint64_t e = ev[c];
         for (size_t i = c; i < c_end; ++i) {
@@ -536,6 +721,113 @@ static void sweep_axis(void *user, int axis)
     b->found = found;
 }
 
+static void sweep_axis(void *user, int axis)
+{
+    choose_job *cj = user;
+    const float *box = cj->box;
+    if (!(box[axis + 3] > box[axis])) {
+        cj->best[axis].cost = cj->limit;
+        cj->best[axis].found = 0;
+        return;
+    }
+    sweep_range(cj, axis, 0, cj->e->count[axis], 0, 0, &cj->best[axis]);
+}
+
+/* A big node's sweep on many threads: each axis's list in pieces that
+ * start at a group, each piece's END and PLANAR events counted, then every
+ * piece swept from the counts before it. Taking the pieces' planes in order,
+ * a later one only when strictly cheaper, gives the plane of one sweep over
+ * the list, so the split does not depend on the number of pieces. */
+
+typedef struct sweep_pieces {
+    choose_job *cj;
+    unsigned per_axis;
+    size_t begin[3][PIECES_MAX + 1];
+    uint32_t ends[3][PIECES_MAX], planars[3][PIECES_MAX];
+    axis_best best[3][PIECES_MAX];
+} sweep_pieces;
+
+static void sweep_piece_count(void *user, unsigned i, unsigned n)
+{
+    sweep_pieces *sp = user;
+    for (unsigned job = i; job < 3 * sp->per_axis; job += n) {
+        const int axis = (int)(job % 3);
+        const unsigned piece = job / 3;
+        const uint64_t *ev = sp->cj->e->list[axis];
+        uint32_t ends = 0, planars = 0;
+        for (size_t k = sp->begin[axis][piece]; k < sp->begin[axis][piece + 1]; ++k) {
+            const int kind = event_kind(ev[k]);
+            ends += kind == EV_END;
+            planars += kind == EV_PLANAR;
+        }
+        sp->ends[axis][piece] = ends;
+        sp->planars[axis][piece] = planars;
+    }
+}
+
+static void sweep_piece_run(void *user, unsigned i, unsigned n)
+{
+    sweep_pieces *sp = user;
+    for (unsigned job = i; job < 3 * sp->per_axis; job += n) {
+        const int axis = (int)(job % 3);
+        const unsigned piece = job / 3;
+        axis_best *b = &sp->best[axis][piece];
+        if (!(sp->cj->box[axis + 3] > sp->cj->box[axis])) {
+            b->cost = sp->cj->limit;
+            b->found = 0;
+            continue;
+        }
+        sweep_range(sp->cj, axis, sp->begin[axis][piece], sp->begin[axis][piece + 1], sp->ends[axis][piece],
+                    sp->planars[axis][piece], b);
+    }
+}
+
+static void sweep_in_pieces(choose_job *cj, unsigned threads, unsigned per_axis)
+{
+    sweep_pieces *sp = malloc(sizeof *sp);
+    if (!sp) {
+        for_each_axis(threads < 3 ? threads : 3, sweep_axis, cj);
+        return;
+    }
+    sp->cj = cj;
+    sp->per_axis = per_axis;
+    for (int axis = 0; axis < 3; ++axis) {
+        const uint64_t *ev = cj->e->list[axis];
+        const size_t m = cj->e->count[axis];
+        sp->begin[axis][0] = 0;
+        for (unsigned piece = 1; piece < per_axis; ++piece) {
+            size_t b = m * piece / per_axis;
+            if (b < sp->begin[axis][piece - 1]) b = sp->begin[axis][piece - 1];
+            while (b > 0 && b < m && event_key(ev[b]) == event_key(ev[b - 1])) ++b;
+            sp->begin[axis][piece] = b;
+        }
+        sp->begin[axis][per_axis] = m;
+    }
+    as_parallel_run(threads, sweep_piece_count, sp);
+    /* Each piece starts from the counts of the pieces before it. */
+    for (int axis = 0; axis < 3; ++axis) {
+        uint32_t ends = 0, planars = 0;
+        for (unsigned piece = 0; piece < per_axis; ++piece) {
+            const uint32_t e = sp->ends[axis][piece], p = sp->planars[axis][piece];
+            sp->ends[axis][piece] = ends;
+            sp->planars[axis][piece] = planars;
+            ends += e;
+            planars += p;
+        }
+    }
+    as_parallel_run(threads, sweep_piece_run, sp);
+    for (int axis = 0; axis < 3; ++axis) {
+        axis_best *b = &cj->best[axis];
+        b->cost = cj->limit;
+        b->found = 0;
+        for (unsigned piece = 0; piece < per_axis; ++piece) {
+            const axis_best *q = &sp->best[axis][piece];
+            if (q->found && q->cost < b->cost) *b = *q;
+        }
+    }
+    free(sp);
+}
+
 static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t n, const float box[6],
                       uint32_t depth, kd_split *out)
 {
@@ -550,7 +842,10 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
     if (n <= 1 && cj.ct >= cj.ci) return 0;
     if (!(cj.area > 0.0)) return 0;
     cj.limit = cj.ci * (double)n;
-    for_each_axis(axis_threads(c, cj.e, n), sweep_axis, &cj);
+    const unsigned threads = axis_threads(c, cj.e, n);
+    const unsigned per_axis = pieces_per_axis(c, cj.e, n);
+    if (per_axis > 1) sweep_in_pieces(&cj, as_thread_count(c->args->thread_count), per_axis);
+    else for_each_axis(threads, sweep_axis, &cj);
     /* The axes in order, a later one only when strictly cheaper: the plane
      * one sweep over all three would keep. */
     double best = cj.limit;
