@@ -101,7 +101,7 @@ static void *arena_alloc(kd_scratch *s, size_t bytes)
     return p;
 }
 
-/* A thread's scratch, kept from task to task: side[] has a byte per
+/* A thread's scratch, kept from task to task: side[] has two bytes per
  * triangle, too big to allocate per node. */
 static kd_scratch *scratch_get(kd_run *run)
 {
@@ -112,7 +112,7 @@ static kd_scratch *scratch_get(kd_run *run)
     if (s) return s;
     s = calloc(1, sizeof *s);
     if (s && run->c->ops->child_states)
-        s->side = malloc(run->c->mesh->triangle_count ? run->c->mesh->triangle_count : 1);
+        s->side = malloc(sizeof(uint16_t) * (run->c->mesh->triangle_count ? run->c->mesh->triangle_count : 1));
     if (!s || (run->c->ops->child_states && !s->side)) {
         free(s);
         return NULL;
@@ -197,6 +197,19 @@ static void free_state(const kd_run *run, void *state)
     if (state && run->c->ops->free_state) run->c->ops->free_state(state);
 }
 
+/* A node's reference array. The big ones near the root come from the
+ * blocks earlier builds gave back (as_block_take takes small ones from
+ * malloc): fresh ones cost a page fault per 4 KB in every build. */
+static kd_ref *refs_alloc(uint32_t n)
+{
+    return as_block_take(sizeof(kd_ref) * (n ? n : 1), 0, "KD references");
+}
+
+static void refs_free(kd_ref *refs, uint32_t n)
+{
+    as_block_give(refs, sizeof(kd_ref) * (n ? n : 1), 0);
+}
+
 static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, void *state, double weight)
 {
     free_state(run, state);
@@ -217,7 +230,7 @@ static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, 
             t->count = n;
         }
     }
-    free(refs);
+    refs_free(refs, n);
     report(run, weight);
     return t;
 }
@@ -340,9 +353,27 @@ static int goes_right(const kd_ref *r, const kd_split *s)
     return hi >= s->pos;
 }
 
+/* The events of `old` that a clipped reference `now` in child s keeps: a
+ * bound that clipping did not move keeps its event, unless the box became
+ * flat along the axis (its one event is then a new PLANAR one). A flat box
+ * stays flat and where it was. */
+static unsigned clipped_keep(const kd_ref *old, const kd_ref *now, int s)
+{
+    unsigned keep = 0;
+    for (int a = 0; a < 3; ++a) {
+        if (old->lo[a] == old->hi[a]) {
+            keep |= KD_KEEP_BIT(s, a, 0);
+        } else if (now->lo[a] != now->hi[a]) {
+            if (now->lo[a] == old->lo[a]) keep |= KD_KEEP_BIT(s, a, 0);
+            if (now->hi[a] == old->hi[a]) keep |= KD_KEEP_BIT(s, a, 1);
+        }
+    }
+    return keep;
+}
+
 /* Where a node's references go: both children's arrays, the indices of
  * the clipped ones in them, and for the SAH builder a byte per triangle
- * saying which child keeps its events (KD_KEEP_*). */
+ * saying which of its events each child keeps (KD_KEEP_*). */
 typedef struct kd_partition {
     const kd_ctx *c;
     const kd_ref *refs;
@@ -350,7 +381,7 @@ typedef struct kd_partition {
     kd_ref *out[2];
     uint32_t at[2], clipped_at[2]; /* the whole node's counts, after partition_range or partition_in_chunks */
     uint32_t *clipped[2];          /* NULL: not recorded */
-    uint8_t *side;                 /* NULL: not recorded */
+    uint16_t *side;                /* NULL: not recorded */
     uint32_t n;
     unsigned chunks;
     float box[2][6];
@@ -366,29 +397,21 @@ static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint3
     for (uint32_t i = begin; i < end; ++i) {
         const kd_ref *r = &p->refs[i];
         unsigned keep = 0;
-        if (goes_left(r, sp)) {
-            if (r->hi[sp->axis] > sp->pos) {
-                clip_ref(p->c->tris, r, p->box[0], &p->out[0][at[0]]);
-                if (p->clipped[0]) p->clipped[0][clipped_at[0]] = at[0];
-                ++clipped_at[0];
+        for (int s = 0; s < 2; ++s) {
+            if (!(s ? goes_right(r, sp) : goes_left(r, sp))) continue;
+            kd_ref *out = &p->out[s][at[s]];
+            if (s ? r->lo[sp->axis] < sp->pos : r->hi[sp->axis] > sp->pos) {
+                clip_ref(p->c->tris, r, p->box[s], out);
+                if (p->clipped[s]) p->clipped[s][clipped_at[s]] = at[s];
+                ++clipped_at[s];
+                keep |= clipped_keep(r, out, s);
             } else {
-                p->out[0][at[0]] = *r;
-                keep |= KD_KEEP_LEFT;
+                *out = *r;
+                keep |= KD_KEEP_SIDE(s);
             }
-            ++at[0];
+            ++at[s];
         }
-        if (goes_right(r, sp)) {
-            if (r->lo[sp->axis] < sp->pos) {
-                clip_ref(p->c->tris, r, p->box[1], &p->out[1][at[1]]);
-                if (p->clipped[1]) p->clipped[1][clipped_at[1]] = at[1];
-                ++clipped_at[1];
-            } else {
-                p->out[1][at[1]] = *r;
-                keep |= KD_KEEP_RIGHT;
-            }
-            ++at[1];
-        }
-        if (p->side) p->side[r->id] = (uint8_t)keep;
+        if (p->side) p->side[r->id] = (uint16_t)keep;
     }
 }
 
@@ -489,12 +512,12 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
         }
-        kd_ref *lr = malloc(sizeof(kd_ref) * (nl ? nl : 1)), *rr = malloc(sizeof(kd_ref) * (nr ? nr : 1));
+        kd_ref *lr = refs_alloc(nl), *rr = refs_alloc(nr);
         const int hand_down = ops->child_states != NULL;
         kd_tmp *node = new_tmp(run, sc);
         if (!lr || !rr || !node || (hand_down && !scratch_clipped_room(sc, n))) {
-            free(lr);
-            free(rr);
+            refs_free(lr, nl);
+            refs_free(rr, nr);
             atomic_store(&run->oom, 1);
             *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
@@ -527,7 +550,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             if (!ops->child_states(c, t.state, sc, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
         }
         free_state(run, t.state);
-        free(refs);
+        refs_free(refs, n);
         node->axis = sp.axis;
         node->pos = sp.pos;
         *t.slot = node;
@@ -555,7 +578,7 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     if (!sc) {
         atomic_store(&run->oom, 1);
         free_state(run, t.state);
-        free(t.refs);
+        refs_free(t.refs, t.n);
         return;
     }
     build_subtree(pool, run, sc, t);
@@ -681,7 +704,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
         init.offset[ch] = n;
         n += end - first - as_mesh_degenerate_in_range(mesh, first, end);
     }
-    init.refs = as_block_take(sizeof(kd_ref) * (n ? n : 1), 0, "KD references");
+    init.refs = refs_alloc(n);
     as_tri4_t *tris = as_spatial_tris(mesh, threads);
     if (!init.refs || !tris) {
         free(init.refs);

@@ -34,20 +34,25 @@ typedef int (*kd_choose_fn)(const struct kd_ctx *c, void *state, const kd_ref *r
  * data down (kd_builder_ops.child_states). A child's references keep the
  * parent's order, which is the order of their triangle indices.
  *
- * side[id], for each triangle id of the parent's references: KD_KEEP_LEFT
- * and KD_KEEP_RIGHT when the reference reaches that child unchanged (its box
- * there is the parent's). clipped[s][0 .. clipped_n[s]) are the indices, in
- * child s's array and in increasing order, of the references whose box the
- * split clipped.
+ * side[id], for each triangle id of the parent's references, says which of
+ * the parent's events of the reference a child keeps: bit KD_KEEP_BIT(s, a,
+ * hi) for child s, axis a, and the event at the box's low (START or PLANAR)
+ * or high (END) bound. A reference that reaches a child unchanged keeps all
+ * six there (KD_KEEP_SIDE); one the split clipped keeps the events at the
+ * bounds that clipping left where they were (on the split axis, the bound
+ * away from the plane, mostly). clipped[s][0 .. clipped_n[s]) are the
+ * indices, in child s's array and in increasing order, of the references
+ * whose box the split clipped: the builder makes the events they do not
+ * keep.
  *
  * The arrays belong to the thread building the node (one set per thread, not
- * per node: side has one byte per triangle of the mesh); `buf` is the
+ * per node: side has two bytes per triangle of the mesh); `buf` is the
  * builder's own scratch, kd_scratch_reserve grows it. */
-#define KD_KEEP_LEFT 1u
-#define KD_KEEP_RIGHT 2u
+#define KD_KEEP_BIT(side, axis, hi) (1u << ((side) * 6 + (axis) * 2 + (hi)))
+#define KD_KEEP_SIDE(side) (0x3fu << ((side) * 6))
 
 typedef struct kd_scratch {
-    uint8_t *side;
+    uint16_t *side;
     uint32_t *clipped[2];
     uint32_t clipped_n[2];
     size_t clipped_cap;

@@ -220,6 +220,31 @@ static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t inde
  * at once gives: the events are ordered by their whole word. */
 #define ROOT_HALVES 2
 
+/* Appends the events of clipped reference `r` on `axis` that child `s`
+ * does not keep from its parent (keep: its side[] bits). */
+static size_t put_fresh_events(uint64_t *out, const kd_ref *r, int axis, unsigned keep, int s, uint32_t *planar)
+{
+    const float lo = r->lo[axis], hi = r->hi[axis];
+    const int keep_lo = (keep & KD_KEEP_BIT(s, axis, 0)) != 0, keep_hi = (keep & KD_KEEP_BIT(s, axis, 1)) != 0;
+    if (lo == hi) {
+        if (keep_lo) return 0;
+        out[0] = make_event(lo, EV_PLANAR, r->id);
+        ++*planar;
+        return 1;
+    }
+    size_t k = 0;
+    if (!keep_lo) out[k++] = make_event(lo, EV_START, r->id);
+    if (!keep_hi) out[k++] = make_event(hi, EV_END, r->id);
+    return k;
+}
+
+/* Whether child s keeps the parent's event ev on axis a: its side[] bit for
+ * the event's bound (END: high; START, PLANAR: low). */
+static unsigned keeps_event(unsigned keep, int s, int a, uint64_t ev)
+{
+    return (keep >> (s * 6 + a * 2 + (event_kind(ev) == EV_END))) & 1u;
+}
+
 typedef struct root_job {
     const kd_ref *refs;
     uint32_t n;
@@ -325,13 +350,13 @@ static void child_axis_events(void *user, int a)
         size_t nf = 0;
         for (uint32_t k = 0; k < how->clipped_n[side]; ++k) {
             const kd_ref *r = &cj->child_refs[side][how->clipped[side][k]];
-            nf += put_events(fresh[side] + nf, r, a, r->id, &planar[side]);
+            nf += put_fresh_events(fresh[side] + nf, r, a, how->side[r->id], side, &planar[side]);
         }
         sort_events(fresh[side], tmp, nf);
         fresh[side][nf] = UINT64_MAX;
         if (side == 0) fresh[1] = fresh[0] + nf + 1;
     }
-    const uint8_t *const keep = how->side;
+    const uint16_t *const keep = how->side;
     uint64_t *o0 = e[0]->list[a], *o1 = e[1]->list[a];
     const uint64_t *f0 = fresh[0], *f1 = fresh[1];
     size_t n0 = 0, n1 = 0;
@@ -345,7 +370,7 @@ static void child_axis_events(void *user, int a)
         /* Written always, kept by advancing: no branch on the side. */
         o0[n0] = ev;
         o1[n1] = ev;
-        const unsigned k0 = f & KD_KEEP_LEFT, k1 = (f & KD_KEEP_RIGHT) >> 1;
+        const unsigned k0 = keeps_event(f, 0, a, ev), k1 = keeps_event(f, 1, a, ev);
         const unsigned is_planar = event_kind(ev) == EV_PLANAR;
         n0 += k0;
         n1 += k1;
@@ -392,7 +417,7 @@ static void child_fresh_sort(void *user, unsigned i, unsigned n)
         uint32_t planar = 0;
         for (uint32_t k = 0; k < how->clipped_n[side]; ++k) {
             const kd_ref *r = &cp->cj->child_refs[side][how->clipped[side][k]];
-            nf += put_events(out + nf, r, a, r->id, &planar);
+            nf += put_fresh_events(out + nf, r, a, how->side[r->id], side, &planar);
         }
         sort_events(out, cp->tmp[a][side], nf);
         out[nf] = UINT64_MAX;
@@ -416,7 +441,7 @@ static size_t events_lower_bound(const uint64_t *ev, size_t n, uint64_t x)
 static void child_piece_count(void *user, unsigned i, unsigned n)
 {
     child_pieces *cp = user;
-    const uint8_t *const keep = cp->cj->how->side;
+    const uint16_t *const keep = cp->cj->how->side;
     for (unsigned job = i; job < 3 * cp->per_axis; job += n) {
         const int a = (int)(job % 3);
         const unsigned piece = job / 3;
@@ -425,7 +450,7 @@ static void child_piece_count(void *user, unsigned i, unsigned n)
         uint32_t p0 = 0, p1 = 0;
         for (size_t k = cp->begin[a][piece]; k < cp->begin[a][piece + 1]; ++k) {
             const unsigned f = keep[event_index(src[k])], is_planar = event_kind(src[k]) == EV_PLANAR;
-            const unsigned l = f & KD_KEEP_LEFT, r = (f & KD_KEEP_RIGHT) >> 1;
+            const unsigned l = keeps_event(f, 0, a, src[k]), r = keeps_event(f, 1, a, src[k]);
             k0 += l;
             k1 += r;
             p0 += l & is_planar;
@@ -441,7 +466,7 @@ static void child_piece_count(void *user, unsigned i, unsigned n)
 static void child_piece_merge(void *user, unsigned i, unsigned n)
 {
     child_pieces *cp = user;
-    const uint8_t *const keep = cp->cj->how->side;
+    const uint16_t *const keep = cp->cj->how->side;
     for (unsigned job = i; job < 3 * cp->per_axis; job += n) {
         const int a = (int)(job % 3);
         const unsigned piece = job / 3;
@@ -458,8 +483,8 @@ static void child_piece_merge(void *user, unsigned i, unsigned n)
             const unsigned f = keep[event_index(ev)];
             while (f0 < f0_end && *f0 < ev) o0[n0++] = *f0++;
             while (f1 < f1_end && *f1 < ev) o1[n1++] = *f1++;
-            if (f & KD_KEEP_LEFT) o0[n0++] = ev;
-            if (f & KD_KEEP_RIGHT) o1[n1++] = ev;
+            if (keeps_event(f, 0, a, ev)) o0[n0++] = ev;
+            if (keeps_event(f, 1, a, ev)) o1[n1++] = ev;
         }
         while (f0 < f0_end) o0[n0++] = *f0++;
         while (f1 < f1_end) o1[n1++] = *f1++;
