@@ -39,7 +39,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PARALLEL_MIN_REFS 4096
+/* A right child of this many references or more goes to a waiting thread
+ * (children are handed over only while one waits): small, so that a thread
+ * that runs out of work near the end of the build soon gets some. */
+#define PARALLEL_MIN_REFS 256
 #define PARTITION_MIN_REFS 32768
 #define KD_PARTITION_CHUNKS 64
 
