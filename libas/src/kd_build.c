@@ -200,18 +200,7 @@ static void free_state(const kd_run *run, void *state)
     if (state && run->c->ops->free_state) run->c->ops->free_state(state);
 }
 
-/* A node's reference array. The big ones near the root come from the
- * blocks earlier builds gave back (as_block_take takes small ones from
- * malloc): fresh ones cost a page fault per 4 KB in every build. */
-static kd_ref *refs_alloc(uint32_t n)
-{
-    return as_block_take(sizeof(kd_ref) * (n ? n : 1), 0, "KD references");
-}
-
-static void refs_free(kd_ref *refs, uint32_t n)
-{
-    as_block_give(refs, sizeof(kd_ref) * (n ? n : 1), 0);
-}
+static kd_ref *refs_alloc(uint32_t n) { return malloc(sizeof(kd_ref) * (n ? n : 1)); }
 
 static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, void *state, double weight)
 {
@@ -233,7 +222,7 @@ static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, 
             t->count = n;
         }
     }
-    refs_free(refs, n);
+    free(refs);
     report(run, weight);
     return t;
 }
@@ -519,8 +508,8 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         const int hand_down = ops->child_states != NULL;
         kd_tmp *node = new_tmp(run, sc);
         if (!lr || !rr || !node || (hand_down && !scratch_clipped_room(sc, n))) {
-            refs_free(lr, nl);
-            refs_free(rr, nr);
+            free(lr);
+            free(rr);
             atomic_store(&run->oom, 1);
             *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
@@ -553,7 +542,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             if (!ops->child_states(c, t.state, sc, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
         }
         free_state(run, t.state);
-        refs_free(refs, n);
+        free(refs);
         node->axis = sp.axis;
         node->pos = sp.pos;
         *t.slot = node;
@@ -581,7 +570,7 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     if (!sc) {
         atomic_store(&run->oom, 1);
         free_state(run, t.state);
-        refs_free(t.refs, t.n);
+        free(t.refs);
         return;
     }
     build_subtree(pool, run, sc, t);

@@ -116,7 +116,6 @@ typedef struct sah_events {
     size_t count[3];
     uint32_t planar[3]; /* planar events per axis */
     uint32_t root_n;    /* references at the root */
-    size_t block_bytes; /* from as_block_take (the nodes near the root), else 0: malloc */
 } sah_events;
 
 /* The three axes' work runs on threads of its own in a node that holds
@@ -169,21 +168,14 @@ static void for_each_axis(unsigned threads, void (*fn)(void *user, int axis), vo
     as_parallel_run(threads, axis_job_run, &j);
 }
 
-#define EVENTS_BLOCK_MIN ((size_t)4 << 20)
-
 /* Each list has one spare slot: the children's lists are filled by writing
  * every event and advancing only past the kept ones, and a finished list
  * ends there with a sentinel above every event (UINT64_MAX, whose key no
  * finite position has), so the sweep can read one event past the last. */
 static sah_events *events_alloc(size_t per_axis)
 {
-    /* The big lists near the root come from the blocks earlier builds gave
-     * back, on huge pages: fresh ones cost a page fault per 4 KB. */
-    const size_t bytes = sizeof(sah_events) + sizeof(uint64_t) * 3 * (per_axis + 1);
-    const int block = bytes >= EVENTS_BLOCK_MIN;
-    sah_events *e = block ? as_block_take(bytes, 1, "KD event lists") : malloc(bytes);
+    sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + 1));
     if (!e) return NULL;
-    e->block_bytes = block ? bytes : 0;
     uint64_t *base = (uint64_t *)(e + 1);
     for (int a = 0; a < 3; ++a) {
         e->list[a] = base + (size_t)a * (per_axis + 1);
@@ -191,13 +183,6 @@ static sah_events *events_alloc(size_t per_axis)
         e->planar[a] = 0;
     }
     return e;
-}
-
-static void events_free(void *state)
-{
-    sah_events *e = state;
-    if (e && e->block_bytes) as_block_give(e, e->block_bytes, 1);
-    else free(e);
 }
 
 /* Appends the events of reference `r` (index `index`) on `axis`. */
@@ -248,17 +233,25 @@ static unsigned keeps_event(unsigned keep, int s, int a, uint64_t ev)
 typedef struct root_job {
     const kd_ref *refs;
     uint32_t n;
-    sah_events *e;
-    uint64_t *runs[3];                   /* per axis: both halves' sorted events, each ending in a sentinel */
-    uint64_t *scratch[3];                /* the sorts' scratch, as long as runs */
+    sah_events *e;                       /* per axis: both halves' sorted events, each ending in a sentinel */
     size_t run_count[3][ROOT_HALVES];
     uint32_t planar[3][ROOT_HALVES];
+    atomic_int failed;
 } root_job;
 
 static void root_half_range(uint32_t n, int h, uint32_t *first, uint32_t *end)
 {
     *first = (uint32_t)((uint64_t)n * (unsigned)h / ROOT_HALVES);
     *end = (uint32_t)((uint64_t)n * (unsigned)(h + 1) / ROOT_HALVES);
+}
+
+/* Where half h's events start in a list: room for the earlier halves'
+ * events and sentinels. */
+static size_t root_half_at(uint32_t n, int h)
+{
+    uint32_t first, end;
+    root_half_range(n, h, &first, &end);
+    return 2 * (size_t)first + (size_t)h;
 }
 
 static void root_sort_half(void *user, unsigned i, unsigned count)
@@ -268,14 +261,17 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
         const int a = (int)(piece % 3), h = (int)(piece / 3);
         uint32_t first, end;
         root_half_range(r->n, h, &first, &end);
-        /* Room for the earlier halves' sentinels; the sort's scratch is the
-         * same place in the scratch block. */
-        const size_t at = 2 * (size_t)first + (size_t)h;
-        uint64_t *out = r->runs[a] + at, *tmp = r->scratch[a] + at;
+        const size_t at = root_half_at(r->n, h);
+        uint64_t *out = r->e->list[a] + at, *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(end > first ? end - first : 1));
+        if (!tmp) {
+            atomic_store(&r->failed, 1);
+            return;
+        }
         size_t m = 0;
         uint32_t planar = 0;
         for (uint32_t k = first; k < end; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id, &planar);
         sort_events(out, tmp, m);
+        free(tmp);
         out[m] = UINT64_MAX;
         r->run_count[a][h] = m;
         r->planar[a][h] = planar;
@@ -285,13 +281,17 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
 static void root_merge_axis(void *user, int a)
 {
     root_job *r = user;
-    uint32_t first1, end1;
-    root_half_range(r->n, 1, &first1, &end1);
-    const uint64_t *x = r->runs[a], *y = r->runs[a] + 2 * (size_t)first1 + 1;
-    uint64_t *out = r->e->list[a];
+    const uint64_t *x = r->e->list[a], *y = r->e->list[a] + root_half_at(r->n, 1);
     const size_t m = r->run_count[a][0] + r->run_count[a][1];
+    uint64_t *out = malloc(sizeof(uint64_t) * (m ? m : 1));
+    if (!out) {
+        atomic_store(&r->failed, 1);
+        return;
+    }
     for (size_t k = 0; k < m; ++k) out[k] = *x < *y ? *x++ : *y++;
-    out[m] = UINT64_MAX;
+    memcpy(r->e->list[a], out, sizeof(uint64_t) * m);
+    free(out);
+    r->e->list[a][m] = UINT64_MAX;
     r->e->count[a] = m;
     r->e->planar[a] = r->planar[a][0] + r->planar[a][1];
 }
@@ -299,28 +299,24 @@ static void root_merge_axis(void *user, int a)
 static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
 {
     if (c->mesh->triangle_count > (uint64_t)EV_INDEX_MASK + 1) return NULL;
-    sah_events *e = events_alloc(2 * (size_t)n);
-    const size_t per_axis = 2 * (size_t)n + ROOT_HALVES, bytes = sizeof(uint64_t) * 6 * per_axis;
-    uint64_t *runs = as_block_take(bytes, 1, "KD root event runs");
-    if (!e || !runs) {
-        events_free(e);
-        free(runs);
-        return NULL;
-    }
+    /* Two events per reference, and a sentinel after each half. */
+    const size_t per_axis = 2 * (size_t)n + ROOT_HALVES;
+    sah_events *e = events_alloc(per_axis);
+    if (!e) return NULL;
     e->root_n = n;
     root_job r;
     memset(&r, 0, sizeof r);
     r.refs = refs;
     r.n = n;
     r.e = e;
-    for (int a = 0; a < 3; ++a) {
-        r.runs[a] = runs + (size_t)a * per_axis;
-        r.scratch[a] = runs + (size_t)(3 + a) * per_axis;
-    }
+    atomic_init(&r.failed, 0);
     const unsigned threads = as_thread_count(c->args->thread_count);
     as_parallel_run(threads < 2 ? 1 : (threads < 3 * ROOT_HALVES ? threads : 3 * ROOT_HALVES), root_sort_half, &r);
-    for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
-    as_block_give(runs, bytes, 1);
+    if (!atomic_load(&r.failed)) for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
+    if (atomic_load(&r.failed)) {
+        free(e);
+        return NULL;
+    }
     return e;
 }
 
@@ -581,8 +577,8 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratc
     out[1] = cj.e[1];
     return 1;
 fail:
-    events_free(cj.e[0]);
-    events_free(cj.e[1]);
+    free(cj.e[0]);
+    free(cj.e[1]);
     out[0] = out[1] = NULL;
     return 0;
 }
@@ -890,6 +886,6 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
 
 as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
 {
-    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, events_free};
+    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, free};
     return kd_build(mesh, args, &ops, s);
 }
