@@ -2,7 +2,7 @@
  *
  *   test_misc_build bih|octree|grid
  *
- * byte-identical files for 1, 2 and 3 threads; cancellation; 10,000 copies
+ * byte-identical files for 1, 2, 3 and 16 threads; cancellation; 10,000 copies
  * of one triangle (depth within the cap, nodes linear in N, the lowest index
  * hit); a small dense cluster in a large scene subdivided; a flat scene hit from both sides; quads lying exactly on split
  * planes and cell walls; zero-area triangles left out; the reference budget;
@@ -83,18 +83,19 @@ static size_t disagreements(const as_mesh_t *m, const as_structure_t *s, const a
     return bad;
 }
 
-static void build_is_byte_identical_for_1_2_and_3_threads(void)
+static void build_is_byte_identical_for_1_2_3_and_16_threads(void)
 {
     as_mesh_t *meshes[2] = {soup(7, 60000, 0.02f), NULL};
     char buf[4096];
     snprintf(buf, sizeof buf, "%s/scenes/bunny.drc", AS_SOURCE_DIR);
     meshes[1] = as_mesh_import(buf);
     CHECK(meshes[0] && meshes[1]);
-    const unsigned threads[] = {1, 2, 3};
+    /* Sixteen threads: more ranges of grid cells than three make. */
+    const unsigned threads[] = {1, 2, 3, 16};
     for (int k = 0; k < 2; ++k) {
         unsigned char *first = NULL;
         size_t first_size = 0;
-        for (size_t t = 0; t < 3 && meshes[k]; ++t) {
+        for (size_t t = 0; t < sizeof threads / sizeof threads[0] && meshes[k]; ++t) {
             as_build_args_t args;
             args_for(&args);
             args.thread_count = threads[t];
@@ -509,7 +510,7 @@ int main(int argc, char **argv)
     if (kind != AS_STRUCT_BIH && kind != AS_STRUCT_OCTREE && kind != AS_STRUCT_GRID) return 2;
     snprintf(tmpdir, sizeof tmpdir, "/tmp/as_test_misc_XXXXXX");
     if (!mkdtemp(tmpdir)) return 1;
-    RUN_TEST(build_is_byte_identical_for_1_2_and_3_threads);
+    RUN_TEST(build_is_byte_identical_for_1_2_3_and_16_threads);
     RUN_TEST(progress_callback_returning_false_cancels_the_build);
     RUN_TEST(copies_of_one_triangle_stay_shallow_and_hit_the_lowest_index);
     RUN_TEST(a_small_dense_cluster_in_a_large_scene_is_subdivided);

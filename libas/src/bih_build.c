@@ -252,6 +252,59 @@ static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t co
     if (spawned) pthread_join(tid, NULL);
 }
 
+#define INIT_CHUNKS 64
+
+typedef struct bih_init_job {
+    const as_mesh_t *mesh;
+    bih_ref *refs;
+    unsigned chunks;
+    uint32_t offset[INIT_CHUNKS];
+    float lo[INIT_CHUNKS][3], hi[INIT_CHUNKS][3], clo[INIT_CHUNKS][3], chi[INIT_CHUNKS][3];
+} bih_init_job;
+
+static void init_chunk(void *user, size_t ch)
+{
+    bih_init_job *j = user;
+    const as_mesh_t *mesh = j->mesh;
+    const uint32_t first = (uint32_t)((uint64_t)mesh->triangle_count * ch / j->chunks);
+    const uint32_t end = (uint32_t)((uint64_t)mesh->triangle_count * (ch + 1) / j->chunks);
+    float lo[3], hi[3], clo[3], chi[3];
+    box_reset(lo, hi);
+    box_reset(clo, chi);
+    uint32_t k = j->offset[ch];
+    for (uint32_t i = first; i < end; ++i) {
+        if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
+        bih_ref *r = &j->refs[k++];
+        const uint32_t *ix = mesh->indices + 3 * (size_t)i;
+        for (int a = 0; a < 3; ++a) { r->lo[a] = FLT_MAX; r->hi[a] = -FLT_MAX; }
+        for (int v = 0; v < 3; ++v) {
+            const float *p = mesh->positions + 3 * (size_t)ix[v];
+            for (int a = 0; a < 3; ++a) {
+                if (p[a] < r->lo[a]) r->lo[a] = p[a];
+                if (p[a] > r->hi[a]) r->hi[a] = p[a];
+            }
+        }
+        /* -0 becomes +0: the clip planes come from these bounds, and the
+         * sign of a zero in them must not depend on which of two equal
+         * references a pass meets first. */
+        for (int a = 0; a < 3; ++a) {
+            r->lo[a] += 0.0f;
+            r->hi[a] += 0.0f;
+        }
+        r->id = i;
+        r->pad = 0.0f;
+        for (int a = 0; a < 3; ++a) {
+            if (r->lo[a] < lo[a]) lo[a] = r->lo[a];
+            if (r->hi[a] > hi[a]) hi[a] = r->hi[a];
+        }
+        centre_grow(r, clo, chi);
+    }
+    memcpy(j->lo[ch], lo, sizeof lo);
+    memcpy(j->hi[ch], hi, sizeof hi);
+    memcpy(j->clo[ch], clo, sizeof clo);
+    memcpy(j->chi[ch], chi, sizeof chi);
+}
+
 typedef struct bih_flat {
     const bih_builder *b;
     as_bih_node_t *out;
@@ -317,34 +370,29 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     bih_boxes root;
     box_reset(root.clo, root.chi);
     {
+        /* The references in contiguous chunks on every thread, each from
+         * where the chunks before it end (the mesh's bits count the zero-area
+         * triangles), in source order; the chunks' boxes merged in order. */
+        bih_init_job init;
+        memset(&init, 0, sizeof init);
+        init.mesh = mesh;
+        init.refs = b.refs;
+        init.chunks = mesh->triangle_count >= 65536 ? INIT_CHUNKS : 1;
         uint32_t k = 0;
-        for (uint32_t i = 0; i < mesh->triangle_count; ++i) {
-            if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
-            bih_ref *r = &b.refs[k++];
-            const uint32_t *ix = mesh->indices + 3 * (size_t)i;
-            for (int a = 0; a < 3; ++a) { r->lo[a] = FLT_MAX; r->hi[a] = -FLT_MAX; }
-            for (int v = 0; v < 3; ++v) {
-                const float *p = mesh->positions + 3 * (size_t)ix[v];
-                for (int a = 0; a < 3; ++a) {
-                    if (p[a] < r->lo[a]) r->lo[a] = p[a];
-                    if (p[a] > r->hi[a]) r->hi[a] = p[a];
-                }
-            }
-            /* -0 becomes +0: the clip planes come from these bounds, and
-             * the sign of a zero in them must not depend on which of two
-             * equal references a pass meets first. */
-            for (int a = 0; a < 3; ++a) {
-                r->lo[a] += 0.0f;
-                r->hi[a] += 0.0f;
-            }
-            r->id = i;
-            r->pad = 0.0f;
-            for (int a = 0; a < 3; ++a) {
-                if (r->lo[a] < lo[a]) lo[a] = r->lo[a];
-                if (r->hi[a] > hi[a]) hi[a] = r->hi[a];
-            }
-            centre_grow(r, root.clo, root.chi);
+        for (unsigned ch = 0; ch < init.chunks; ++ch) {
+            const uint32_t first = (uint32_t)((uint64_t)mesh->triangle_count * ch / init.chunks);
+            const uint32_t end = (uint32_t)((uint64_t)mesh->triangle_count * (ch + 1) / init.chunks);
+            init.offset[ch] = k;
+            k += end - first - as_mesh_degenerate_in_range(mesh, first, end);
         }
+        as_parallel_for(as_thread_count(args->thread_count), init.chunks, init_chunk, &init);
+        for (unsigned ch = 0; ch < init.chunks; ++ch)
+            for (int a = 0; a < 3; ++a) {
+                if (init.lo[ch][a] < lo[a]) lo[a] = init.lo[ch][a];
+                if (init.hi[ch][a] > hi[a]) hi[a] = init.hi[ch][a];
+                if (init.clo[ch][a] < root.clo[a]) root.clo[a] = init.clo[ch][a];
+                if (init.chi[ch][a] > root.chi[a]) root.chi[a] = init.chi[ch][a];
+            }
     }
     if (n == 0) for (int a = 0; a < 3; ++a) lo[a] = hi[a] = 0.0f;
     memcpy(root.cand_lo, lo, sizeof lo);

@@ -10,10 +10,11 @@
  * Each triangle goes to every cell its box covers that it overlaps (exact
  * triangle/box test, Akenine-Moller 2001, with a few-ulp pad). Build in
  * parallel passes over fixed blocks of triangles: find each triangle's cells,
- * keeping the (cell, triangle) pairs of each block so the overlap tests run
- * once; count per cell, each thread a range of cells over all pairs; a
- * sequential prefix sum into GRDC; fill from the pairs the same way, in
- * triangle order, so PRIM is the same whatever the thread count. */
+ * keeping the (cell, triangle) pairs of each block, grouped by range of
+ * cells, so the overlap tests run once; count per cell, a range of cells at
+ * a time over its pairs in every block; a sequential prefix sum into GRDC;
+ * fill from the pairs the same way, in triangle order, so PRIM is the same
+ * whatever the thread count. */
 #include "spatial_common.h"
 #include "grid_layout.h"
 
@@ -30,10 +31,14 @@ static inline float max3f(float a, float b, float c) { const float m = a > b ? a
 
 #define BLOCK 2048
 
-/* The (cell, triangle) pairs pass 1 found in one block, in triangle order. */
+/* The (cell, triangle) pairs pass 1 found in one block, in triangle order,
+ * then grouped by range of cells (range r at [range_at[r], range_at[r + 1]),
+ * still in triangle order within each), so that a range's pass reads only
+ * its own pairs. */
 typedef struct grid_pairs {
     uint32_t *cell, *tri;
     size_t count, cap;
+    uint32_t *range_at;
 } grid_pairs;
 
 typedef struct grid_job {
@@ -54,6 +59,7 @@ typedef struct grid_job {
     atomic_int over;              /* pass 1 found more than the budget */
     atomic_int oom;
     grid_pairs *pairs;            /* one per block */
+    unsigned range_shift, ranges; /* a cell's range is cell >> range_shift */
 } grid_job;
 
 static int pairs_push(grid_pairs *p, uint32_t cell, uint32_t tri)
@@ -97,6 +103,38 @@ static uint32_t clamp_cell(const as_grid_header_t *g, int k, double x)
     if (!(f > 0)) return 0;
     if (f >= g->dims[k]) return g->dims[k] - 1;
     return (uint32_t)f;
+}
+
+/* Groups a block's pairs by range of cells, a stable counting sort. */
+static int group_by_range(const grid_job *job, grid_pairs *p)
+{
+    const unsigned ranges = job->ranges, shift = job->range_shift;
+    uint32_t *at = calloc((size_t)ranges + 1, sizeof(uint32_t));
+    uint32_t *cell = malloc(sizeof(uint32_t) * (p->count ? p->count : 1));
+    uint32_t *tri = malloc(sizeof(uint32_t) * (p->count ? p->count : 1));
+    if (!at || !cell || !tri) {
+        free(at);
+        free(cell);
+        free(tri);
+        return 0;
+    }
+    for (size_t i = 0; i < p->count; ++i) at[(p->cell[i] >> shift) + 1]++;
+    for (unsigned r = 0; r < ranges; ++r) at[r + 1] += at[r];
+    for (size_t i = 0; i < p->count; ++i) {
+        const uint32_t k = at[p->cell[i] >> shift]++;
+        cell[k] = p->cell[i];
+        tri[k] = p->tri[i];
+    }
+    /* The cursors ended where each range ends: shift them back. */
+    memmove(at + 1, at, sizeof(uint32_t) * ranges);
+    at[0] = 0;
+    free(p->cell);
+    free(p->tri);
+    p->cell = cell;
+    p->tri = tri;
+    p->cap = p->count;
+    p->range_at = at;
+    return 1;
 }
 
 /* Pass 1 over a block: the cells of each triangle, kept as (cell, triangle)
@@ -154,23 +192,22 @@ static void grid_block(void *user, size_t block)
                     }
                 }
     }
+    if (!group_by_range(job, &local)) atomic_store(&job->oom, 1);
     job->pairs[block] = local;
     atomic_fetch_add(&job->refs, local_refs);
     report_progress(job, end - begin);
 }
 
-/* A pass over every block's pairs, in block order, for one range of cells:
+/* A pass over every block's pairs of one range of cells, in block order:
  * each cell belongs to one range, so no two threads touch its count or
  * cursor (atomic adds on neighbouring cells from several threads cost more
- * than the pass). Counting adds one per pair to the cell's count; filling
- * puts the pair's triangle at the cell's cursor, so each list comes out in
- * triangle order (the pairs are), which is PRIM's order whatever the thread
- * count. */
+ * than the pass), and each range's pairs are read once. Counting adds one
+ * per pair to the cell's count; filling puts the pair's triangle at the
+ * cell's cursor, so each list comes out in triangle order (the pairs are),
+ * which is PRIM's order whatever the thread count. */
 typedef struct range_job {
     grid_job *job;
     size_t blocks;
-    uint64_t cells;
-    unsigned ranges;
     int fill;          /* 0: count, 1: fill job->prims */
 } range_job;
 
@@ -179,14 +216,12 @@ static void grid_range_pass(void *user, size_t range)
     const range_job *f = user;
     grid_job *job = f->job;
     if (atomic_load(&job->cancelled)) return;
-    const uint64_t c0 = f->cells * range / f->ranges, c1 = f->cells * (range + 1) / f->ranges;
-    const uint32_t span = (uint32_t)(c1 - c0);
     atomic_uint *at = job->counts;
     for (size_t b = 0; b < f->blocks; ++b) {
         const grid_pairs *pairs = &job->pairs[b];
-        for (size_t i = 0; i < pairs->count; ++i) {
+        if (!pairs->range_at) continue;
+        for (size_t i = pairs->range_at[range]; i < pairs->range_at[range + 1]; ++i) {
             const uint32_t cell = pairs->cell[i];
-            if (cell - (uint32_t)c0 >= span) continue;
             const uint32_t k = atomic_load_explicit(&at[cell], memory_order_relaxed);
             atomic_store_explicit(&at[cell], k + 1, memory_order_relaxed);
             if (f->fill) job->prims[k] = pairs->tri[i];
@@ -195,7 +230,7 @@ static void grid_range_pass(void *user, size_t range)
     if (!f->fill) return;
     /* The second half of the progress, a range's share of the triangles. */
     const uint64_t nt = job->mesh->triangle_count;
-    report_progress(job, (uint32_t)(nt * (range + 1) / f->ranges - nt * range / f->ranges));
+    report_progress(job, (uint32_t)(nt * (range + 1) / job->ranges - nt * range / job->ranges));
 }
 
 static void free_pairs(grid_pairs *pairs, size_t blocks)
@@ -204,8 +239,80 @@ static void free_pairs(grid_pairs *pairs, size_t blocks)
     for (size_t b = 0; b < blocks; ++b) {
         free(pairs[b].cell);
         free(pairs[b].tri);
-        pairs[b].cell = pairs[b].tri = NULL;
+        free(pairs[b].range_at);
+        pairs[b].cell = pairs[b].tri = pairs[b].range_at = NULL;
         pairs[b].count = pairs[b].cap = 0;
+    }
+}
+
+#define BOUNDS_CHUNKS 64
+
+typedef struct bounds_job {
+    const as_mesh_t *mesh;
+    uint8_t *skip;
+    float box[BOUNDS_CHUNKS][6];
+    uint32_t count[BOUNDS_CHUNKS];
+    unsigned chunks;
+} bounds_job;
+
+static void grid_bounds_chunk(void *user, size_t ch)
+{
+    bounds_job *j = user;
+    const as_mesh_t *m = j->mesh;
+    const uint32_t nt = m->triangle_count;
+    const uint32_t begin = (uint32_t)((uint64_t)nt * ch / j->chunks), end = (uint32_t)((uint64_t)nt * (ch + 1) / j->chunks);
+    float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    uint32_t n = 0;
+    for (uint32_t i = begin; i < end; ++i) {
+        j->skip[i] = (uint8_t)as_mesh_triangle_is_degenerate(m, i);
+        if (j->skip[i]) continue;
+        ++n;
+        for (int v = 0; v < 3; ++v) {
+            const float *q = m->positions + 3 * (size_t)m->indices[3 * (size_t)i + v];
+            for (int k = 0; k < 3; ++k) {
+                if (q[k] < lo[k]) lo[k] = q[k];
+                if (q[k] > hi[k]) hi[k] = q[k];
+            }
+        }
+    }
+    memcpy(j->box[ch], lo, sizeof lo);
+    memcpy(j->box[ch] + 3, hi, sizeof hi);
+    j->count[ch] = n;
+}
+
+#define PREFIX_CHUNKS 64
+
+typedef struct prefix_job {
+    atomic_uint *counts; /* per cell: its count, then its cursor (its offset) */
+    uint32_t *offsets;
+    uint64_t cells;
+    unsigned chunks;
+    uint64_t sum[PREFIX_CHUNKS];      /* a chunk's count, then where it starts */
+    uint64_t nonempty[PREFIX_CHUNKS];
+    int write;
+} prefix_job;
+
+static void grid_prefix_chunk(void *user, size_t ch)
+{
+    prefix_job *j = user;
+    const uint64_t c0 = j->cells * ch / j->chunks, c1 = j->cells * (ch + 1) / j->chunks;
+    if (!j->write) {
+        uint64_t sum = 0, nonempty = 0;
+        for (uint64_t c = c0; c < c1; ++c) {
+            const uint32_t k = atomic_load_explicit(&j->counts[c], memory_order_relaxed);
+            sum += k;
+            nonempty += k != 0;
+        }
+        j->sum[ch] = sum;
+        j->nonempty[ch] = nonempty;
+        return;
+    }
+    uint64_t sum = j->sum[ch];
+    for (uint64_t c = c0; c < c1; ++c) {
+        const uint32_t k = atomic_load_explicit(&j->counts[c], memory_order_relaxed);
+        j->offsets[c] = (uint32_t)sum;
+        atomic_store_explicit(&j->counts[c], (unsigned)sum, memory_order_relaxed);
+        sum += k;
     }
 }
 
@@ -236,18 +343,18 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     const size_t blocks = (nt + BLOCK - 1) / BLOCK;
     uint8_t *skip = malloc(nt ? nt : 1);
     if (!skip) return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build");
+    /* The zero-area triangles and the others' bounds, in chunks of blocks on
+     * every thread; the chunks' bounds merged in order, so a bound that is
+     * zero keeps the sign of its first occurrence, as one pass would. */
+    bounds_job bj = {mesh, skip, {{0}}, {0}, blocks < BOUNDS_CHUNKS ? (unsigned)(blocks ? blocks : 1) : BOUNDS_CHUNKS};
+    as_parallel_for(threads, bj.chunks, grid_bounds_chunk, &bj);
     uint32_t n = 0;
     float blo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, bhi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
-    for (uint32_t i = 0; i < nt; ++i) {
-        skip[i] = (uint8_t)as_mesh_triangle_is_degenerate(mesh, i);
-        if (skip[i]) continue;
-        ++n;
-        for (int v = 0; v < 3; ++v) {
-            const float *q = mesh->positions + 3 * (size_t)mesh->indices[3 * (size_t)i + v];
-            for (int k = 0; k < 3; ++k) {
-                if (q[k] < blo[k]) blo[k] = q[k];
-                if (q[k] > bhi[k]) bhi[k] = q[k];
-            }
+    for (unsigned ch = 0; ch < bj.chunks; ++ch) {
+        n += bj.count[ch];
+        for (int k = 0; k < 3; ++k) {
+            if (bj.box[ch][k] < blo[k]) blo[k] = bj.box[ch][k];
+            if (bj.box[ch][k + 3] > bhi[k]) bhi[k] = bj.box[ch][k + 3];
         }
     }
     if (n == 0) for (int k = 0; k < 3; ++k) { blo[k] = 0.0f; bhi[k] = 0.0f; }
@@ -303,6 +410,11 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         counts = calloc(cells, sizeof(atomic_uint));
         if (!counts) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for %llu grid cells", (unsigned long long)cells); goto done; }
         job.counts = counts;
+        /* Ranges of cells for the counting and filling passes: about four
+         * per thread, each a power of two of cells. */
+        job.range_shift = 0;
+        while (((cells - 1) >> job.range_shift) >= (uint64_t)threads * 4) ++job.range_shift;
+        job.ranges = (unsigned)((cells - 1) >> job.range_shift) + 1;
         job.pass = 1;
         atomic_store(&job.over, 0);
         atomic_store(&job.refs, 0);
@@ -313,8 +425,8 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         if (atomic_load(&job.oom)) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
         const uint64_t refs = atomic_load(&job.refs);
         if (!atomic_load(&job.over) && (double)refs <= job.budget) {
-            const range_job count = {&job, blocks, cells, threads, 0};
-            as_parallel_for(threads, threads, grid_range_pass, (void *)&count);
+            const range_job count = {&job, blocks, 0};
+            as_parallel_for(threads, job.ranges, grid_range_pass, (void *)&count);
             break;
         }
         if (cells == 1) {
@@ -331,21 +443,25 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     prims = as_aligned_alloc(sizeof(uint32_t) * (refs ? refs : 1), "grid PRIM");
     tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
     if (!offsets || !prims || !tris) { err = as_get_error(); goto done; }
-    /* The prefix sum, sequential: one pass over the cells. */
+    /* The prefix sum in chunks of cells: each chunk's sum, then each chunk
+     * from where the chunks before it end. */
+    prefix_job pj = {counts, offsets, cells, cells < PREFIX_CHUNKS ? (unsigned)cells : PREFIX_CHUNKS, {0}, {0}, 0};
+    as_parallel_for(threads, pj.chunks, grid_prefix_chunk, &pj);
     uint64_t sum = 0, nonempty = 0;
-    for (uint64_t c = 0; c < cells; ++c) {
-        const uint32_t k = atomic_load_explicit(&counts[c], memory_order_relaxed);
-        offsets[c] = (uint32_t)sum;
-        atomic_store_explicit(&counts[c], (unsigned)sum, memory_order_relaxed);
+    for (unsigned ch = 0; ch < pj.chunks; ++ch) {
+        const uint64_t k = pj.sum[ch];
+        pj.sum[ch] = sum;
         sum += k;
-        nonempty += k != 0;
+        nonempty += pj.nonempty[ch];
     }
+    pj.write = 1;
+    as_parallel_for(threads, pj.chunks, grid_prefix_chunk, &pj);
     offsets[cells] = (uint32_t)sum;
     job.pass = 2;
     job.prims = prims;
     atomic_store(&job.done, 0);
-    const range_job fill = {&job, blocks, cells, threads, 1};
-    as_parallel_for(threads, threads, grid_range_pass, (void *)&fill);
+    const range_job fill = {&job, blocks, 1};
+    as_parallel_for(threads, job.ranges, grid_range_pass, (void *)&fill);
     free_pairs(job.pairs, blocks);
     if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
 
