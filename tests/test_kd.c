@@ -12,6 +12,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 
 static char tmpdir[256];
 static as_builder_t builder;
@@ -431,6 +432,39 @@ static void a_single_triangle_and_an_all_degenerate_mesh_build_and_trace(void)
     as_mesh_release(m2);
 }
 
+/* A scene 2e-39 wide (subnormal floats) and flat: two triangles side by side
+ * along x, each with a vertex at one end of the scene. Splitting between
+ * them costs traversal + intersection against two intersections for a leaf,
+ * so with a traversal cost below the intersection cost the SAH builder
+ * splits; pricing the planes in single precision must not lose them (the
+ * perimeter term, 1 / the width, is beyond float's range). */
+static void a_scene_thinner_than_floats_resolve_still_splits_where_it_pays(void)
+{
+    if (strcmp(builder_name, "sah") != 0) return;
+    float *p = malloc(sizeof(float) * 18);
+    const float v[18] = {0.0f, 0.0f, 0.0f, 5e-40f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f,
+                         1.5e-39f, 0.0f, 0.0f, 2e-39f, 0.0f, 0.0f, 1.5e-39f, 1.0f, 0.0f};
+    memcpy(p, v, sizeof v);
+    as_mesh_t *m = test_mesh_from_soup(p, 2);
+    CHECK(m != NULL);
+    if (!m) return;
+    as_build_args_t a = kd_args(AS_LAYOUT_KD_STANDARD);
+    a.cost_traversal = 0.5f;
+    a.cost_intersection = 1.0f;
+    a.max_leaf_size = 1;
+    as_structure_t *s = as_structure_build(m, &a);
+    CHECK(s != NULL);
+    if (s) {
+        as_structure_stats_t st;
+        CHECK_EQ_INT(as_structure_get_stats(s, &st), AS_OK);
+        if (st.node_count < 1) fprintf(stderr, "  the root stayed a leaf\n");
+        CHECK(st.node_count >= 1);
+        CHECK_EQ_INT(as_structure_validate(s), AS_OK);
+        as_structure_release(s);
+    }
+    as_mesh_release(m);
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2) { fprintf(stderr, "usage: %s midcut|sah\n", argv[0]); return 2; }
@@ -448,6 +482,7 @@ int main(int argc, char **argv)
     RUN_TEST(validation_rejects_damaged_trees_and_ropes);
     RUN_TEST(depth_cap_and_split_budget_are_respected);
     RUN_TEST(a_single_triangle_and_an_all_degenerate_mesh_build_and_trace);
+    RUN_TEST(a_scene_thinner_than_floats_resolve_still_splits_where_it_pays);
     rmdir(tmpdir);
     TEST_EXIT();
 }

@@ -631,10 +631,11 @@ typedef struct kd_init_job {
     float box[KD_INIT_CHUNKS][6];
 } kd_init_job;
 
-/* fminf and fmaxf for finite values, the first of two equal ones (so of
- * -0 and +0 too), without libm's call. */
-static float min_first(float a, float b) { return b < a ? b : a; }
-static float max_first(float a, float b) { return b > a ? b : a; }
+/* Minimum and maximum of finite values without libm's call; of +0 and -0
+ * the second, as the minss and maxss instructions (and x86-64's fminf and
+ * fmaxf) give. */
+static float min2(float a, float b) { return a < b ? a : b; }
+static float max2(float a, float b) { return a > b ? a : b; }
 
 static void init_chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first, uint32_t *end)
 {
@@ -657,8 +658,8 @@ static void init_fill(void *user, unsigned ch, unsigned chunks)
         kd_ref *r = &job->refs[k++];
         r->id = i;
         for (int a = 0; a < 3; ++a) {
-            r->lo[a] = min_first(v[0][a], min_first(v[1][a], v[2][a]));
-            r->hi[a] = max_first(v[0][a], max_first(v[1][a], v[2][a]));
+            r->lo[a] = min2(v[0][a], min2(v[1][a], v[2][a]));
+            r->hi[a] = max2(v[0][a], max2(v[1][a], v[2][a]));
             if (r->lo[a] < box[a]) box[a] = r->lo[a];
             if (r->hi[a] > box[a + 3]) box[a + 3] = r->hi[a];
         }

@@ -653,9 +653,14 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
     const double lo = box[axis], hi = box[axis + 3];
     const float face_f = (float)face, rim_f = (float)rim, lo_f = box[axis], hi_f = box[axis + 3];
     const float ct_f = (float)ct, ci_f = (float)ci;
-    /* Costs far from 1 could leave single precision's range: then every
-     * group is priced exactly. */
-    const int filter = ci >= 1e-12 && ci <= 1e12 && ct <= 1e12 && (ct == 0.0 || ct >= 1e-12);
+    /* The single-precision bound needs every term within float's normal
+     * range: the costs near 1, and a box not so thin along the axis that
+     * the perimeter term (1 / its width, at most) overflows. Each side's
+     * area term is at most 2, and a traversal cost of at least 1e-12 keeps
+     * a cost from being only a tiny area term (one side empty, the plane
+     * near a face), whose relative error in single precision has no bound.
+     * Otherwise every group is priced exactly. */
+    const int filter = ci >= 1e-12 && ci <= 1e12 && ct >= 1e-12 && ct <= 1e12 && rim < 1e30;
     const uint32_t key_lo = float_key(box[axis]), key_hi = float_key(box[axis + 3]);
     double best = cj->limit, threshold = best * (1.0 + SWEEP_MARGIN);
     float best_pos = 0.0f;
