@@ -605,17 +605,17 @@ typedef struct choose_job {
 } choose_job;
 
 /* The sweep takes a list in chunks of events, three passes per chunk:
- *  1. the groups of events at one position, without a branch (a group's
- *     size, 1 up to a vertex's valence, is what a loop over it would
- *     mispredict on): every event writes its running counts and advances
- *     past the group's last;
+ *  1. the groups of events at one position, in a row: every event writes
+ *     its running counts and advances past the group's last, so the groups
+ *     (1 event up to a vertex's valence) need no loop of their own;
  *  2. every group's lower cost in single precision, a loop the compiler
  *     vectorizes;
  *  3. the exact cost, in double precision, only of the groups whose single
- *     precision cost is within SWEEP_MARGIN of the best so far: all others
- *     cost more than it. The single precision terms are non-negative, each
- *     rounded a few times, so they are within 1e-6 of the exact ones; the
- *     planes chosen are those of a double precision sweep over every group. */
+ *     precision cost is within SWEEP_MARGIN of the chunk's or the sweep's
+ *     lowest: all others cost more than the plane kept. The single
+ *     precision terms are non-negative, each rounded a few times, so they
+ *     are within 1e-6 of the exact ones; the planes chosen are those of a
+ *     double precision sweep over every group. */
 #define SWEEP_CHUNK 256
 #define SWEEP_MARGIN 1e-5
 
