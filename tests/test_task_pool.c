@@ -2,14 +2,19 @@
  * outside a pool on threads of its own and inside a task of
  * as_task_pool_run on the pool's idle threads, which do take part; steps of
  * two tasks that overlap both finish, and the pool ends when every task is
- * done. */
+ * done. The threads are kept from one step to the next (a second step runs
+ * on the first one's threads), steps started from inside a step finish, and
+ * a child process after fork() runs steps on threads of its own. */
 #include "as/as.h"
 #include "task_pool.h"
 #include "test_util.h"
 
 #include <pthread.h>
+#include <signal.h>
 #include <stdatomic.h>
+#include <sys/wait.h>
 #include <time.h>
+#include <unistd.h>
 
 #define MAX_INDICES 256
 
@@ -190,11 +195,85 @@ static void two_overlapping_steps_both_finish(void)
     if (watching) pthread_join(w, NULL);
 }
 
+/* How many indices this thread ran before, in any step: a thread started
+ * for a step has run none. */
+static _Thread_local unsigned indices_run_here;
+static unsigned ran_before[8];
+
+static void note_thread(void *user, unsigned i, unsigned n)
+{
+    (void)user;
+    (void)n;
+    ran_before[i] = indices_run_here++;
+    volatile unsigned x = 0; /* a little work, so that no thread takes two */
+    for (unsigned k = 0; k < 200000; ++k) x += k;
+}
+
+static void a_second_step_runs_on_the_first_steps_threads(void)
+{
+    as_parallel_run(8, note_thread, NULL);
+    as_parallel_run(8, note_thread, NULL);
+    /* Index 0 is the caller's; the others ran on kept threads. */
+    unsigned kept = 0;
+    for (unsigned i = 1; i < 8; ++i) kept += ran_before[i] > 0;
+    if (kept != 7) fprintf(stderr, "  %u of 7 indices of the second step on threads that ran one before\n", kept);
+    CHECK_EQ_INT((int)kept, 7);
+}
+
+static step inner_steps[4];
+
+static void start_inner_step(void *user, unsigned i, unsigned n)
+{
+    (void)user;
+    (void)n;
+    step_init(&inner_steps[i], 16);
+    as_parallel_run(16, count_index, &inner_steps[i]);
+}
+
+static void steps_started_inside_a_step_finish(void)
+{
+    as_parallel_run(4, start_inner_step, NULL);
+    for (int i = 0; i < 4; ++i) CHECK(each_index_once(&inner_steps[i]));
+}
+
+static void a_forked_child_runs_steps_on_threads_of_its_own(void)
+{
+    step s;
+    step_init(&s, 8);
+    as_parallel_run(8, count_index, &s); /* the parent now keeps threads */
+    const pid_t pid = fork();
+    if (pid == 0) {
+        step c;
+        step_init(&c, 8);
+        as_parallel_run(8, count_index, &c);
+        _exit(each_index_once(&c) ? 0 : 1);
+    }
+    CHECK(pid > 0);
+    int status = 0;
+    if (pid > 0) {
+        /* A child waiting on its parent's threads would wait for ever. */
+        int waited = 0;
+        for (int i = 0; i < 300 && !waited; ++i) {
+            waited = waitpid(pid, &status, WNOHANG) == pid;
+            if (!waited) sleep_ms(100);
+        }
+        if (!waited) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &status, 0);
+            fprintf(stderr, "  the child did not finish within 30 s\n");
+        }
+        CHECK(waited && WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    }
+}
+
 int main(void)
 {
     RUN_TEST(outside_a_pool_every_index_runs_once);
     RUN_TEST(inside_a_pool_every_index_runs_once);
     RUN_TEST(idle_pool_threads_take_part_in_a_step);
     RUN_TEST(two_overlapping_steps_both_finish);
+    RUN_TEST(a_second_step_runs_on_the_first_steps_threads);
+    RUN_TEST(steps_started_inside_a_step_finish);
+    RUN_TEST(a_forked_child_runs_steps_on_threads_of_its_own);
     TEST_EXIT();
 }

@@ -1,6 +1,7 @@
 /* Common layer: version, memory, clocks, threads, hashing. */
 #define _POSIX_C_SOURCE 200809L
 #include "as_internal.h"
+#include "thread_crew.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
@@ -57,15 +58,15 @@ typedef struct parallel_job {
     atomic_size_t next;
 } parallel_job;
 
-static void *parallel_worker(void *arg)
+static void parallel_worker(void *user, unsigned thread)
 {
-    parallel_job *job = arg;
+    (void)thread;
+    parallel_job *job = user;
     for (;;) {
         const size_t i = atomic_fetch_add(&job->next, 1);
         if (i >= job->count) break;
         job->fn(job->user, i);
     }
-    return NULL;
 }
 
 void as_parallel_for(unsigned threads, size_t count, as_parallel_fn fn, void *user)
@@ -73,18 +74,13 @@ void as_parallel_for(unsigned threads, size_t count, as_parallel_fn fn, void *us
     parallel_job job = {fn, user, count, 0};
     if (threads > count) threads = (unsigned)count;
     if (threads <= 1) {
-        parallel_worker(&job);
+        parallel_worker(&job, 0);
         return;
     }
-    pthread_t *tids = malloc(sizeof(pthread_t) * (threads - 1));
-    unsigned started = 0;
-    if (tids) {
-        for (; started < threads - 1; ++started)
-            if (pthread_create(&tids[started], NULL, parallel_worker, &job) != 0) break;
-    }
-    parallel_worker(&job); /* the caller works too; if threads failed to start, alone */
-    for (unsigned t = 0; t < started; ++t) pthread_join(tids[t], NULL);
-    free(tids);
+    as_crew_batch crew;
+    as_crew_start(&crew, threads - 1, parallel_worker, &job);
+    parallel_worker(&job, 0); /* the caller works too */
+    as_crew_wait(&crew);
 }
 
 uint64_t as_hash64(const void *data, size_t bytes) { return XXH3_64bits(data, bytes); }

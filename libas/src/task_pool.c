@@ -1,5 +1,6 @@
 /* See task_pool.h. */
 #include "task_pool.h"
+#include "thread_crew.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
@@ -123,6 +124,12 @@ static void *worker(void *arg)
     return NULL;
 }
 
+static void crew_worker(void *user, unsigned i)
+{
+    (void)i;
+    worker(user);
+}
+
 int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_task_fn run, void *user)
 {
     if (task_size == 0 || task_size > AS_TASK_MAX_SIZE) return 0;
@@ -146,14 +153,10 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
     }
     if (threads < 1) threads = 1;
     if (threads > 256) threads = 256;
-    pthread_t tids[256];
-    unsigned started = 0;
-    for (unsigned i = 1; i < threads; ++i) {
-        if (pthread_create(&tids[started], NULL, worker, &p) != 0) break; /* fewer threads, same result */
-        started++;
-    }
+    as_crew_batch crew;
+    as_crew_start(&crew, threads - 1, crew_worker, &p);
     worker(&p);
-    for (unsigned i = 0; i < started; ++i) pthread_join(tids[i], NULL);
+    as_crew_wait(&crew);
     free(p.stack);
     pthread_cond_destroy(&p.help_done);
     pthread_cond_destroy(&p.wake);
@@ -164,14 +167,14 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
 typedef struct parallel_job {
     void (*fn)(void *user, unsigned i, unsigned n);
     void *user;
-    unsigned i, n;
+    unsigned n;
 } parallel_job;
 
-static void *parallel_thread(void *arg)
+/* Index i of the crew's batch is the step's index i + 1 (the caller runs 0). */
+static void parallel_crew(void *user, unsigned i)
 {
-    const parallel_job *j = arg;
-    j->fn(j->user, j->i, j->n);
-    return NULL;
+    const parallel_job *j = user;
+    j->fn(j->user, i + 1, j->n);
 }
 
 /* Inside a pool's task: the indices are taken one at a time by this thread
@@ -212,16 +215,9 @@ void as_parallel_run(unsigned n, void (*fn)(void *user, unsigned i, unsigned n),
         parallel_in_pool(current_pool, n, fn, user);
         return;
     }
-    pthread_t tids[256];
-    parallel_job jobs[256];
-    int started[256];
-    for (unsigned i = 1; i < n; ++i) {
-        jobs[i] = (parallel_job){fn, user, i, n};
-        started[i] = pthread_create(&tids[i], NULL, parallel_thread, &jobs[i]) == 0;
-    }
+    parallel_job job = {fn, user, n};
+    as_crew_batch crew;
+    as_crew_start(&crew, n - 1, parallel_crew, &job);
     fn(user, 0, n);
-    for (unsigned i = 1; i < n; ++i) {
-        if (started[i]) pthread_join(tids[i], NULL);
-        else fn(user, i, n);
-    }
+    as_crew_wait(&crew);
 }
