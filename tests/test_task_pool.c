@@ -115,8 +115,9 @@ static void lone_run(as_task_pool *pool, void *task, void *user)
 static void idle_pool_threads_take_part_in_a_step(void)
 {
     int helped = 0;
-    /* Thread start-up can be slow on a loaded machine: a few tries. */
-    for (int attempt = 0; attempt < 20 && !helped; ++attempt) {
+    /* On a loaded machine the other threads may get no core during a step
+     * of a few milliseconds: up to 200 tries (a second), until one helps. */
+    for (int attempt = 0; attempt < 200 && !helped; ++attempt) {
         step_init(&lone, 256);
         const char dummy = 0;
         CHECK(as_task_pool_run(4, 1, &dummy, lone_run, NULL));

@@ -73,6 +73,7 @@ void as_parallel_for(unsigned threads, size_t count, as_parallel_fn fn, void *us
 {
     parallel_job job = {fn, user, count, 0};
     if (threads > count) threads = (unsigned)count;
+    if (threads > 256) threads = 256; /* as as_parallel_run: no core count comes near */
     if (threads <= 1) {
         parallel_worker(&job, 0);
         return;

@@ -1,10 +1,14 @@
 /* Threads kept between parallel steps (see thread_crew.h). */
+#define _POSIX_C_SOURCE 200809L /* pthread_sigmask */
 #include "thread_crew.h"
 
 #include <pthread.h>
+#include <signal.h>
 #include <stdlib.h>
+#include <unistd.h>
 
 typedef struct crew_thread {
+    pthread_t tid;
     pthread_cond_t wake;
     as_crew_batch *batch; /* NULL while waiting */
     unsigned index;
@@ -14,9 +18,18 @@ typedef struct crew_thread {
 static pthread_mutex_t crew_lock = PTHREAD_MUTEX_INITIALIZER;
 static pthread_cond_t crew_done = PTHREAD_COND_INITIALIZER;
 static crew_thread *crew_idle;    /* under crew_lock */
-static int crew_quit;             /* under crew_lock: the library is being unloaded */
 static unsigned crew_parked;      /* under crew_lock: threads on crew_idle */
+static int crew_quit;             /* under crew_lock: the library is being unloaded */
 static pthread_once_t crew_once = PTHREAD_ONCE_INIT;
+
+/* At most this many threads wait for work; a thread that finishes when as
+ * many wait leaves instead (a caller that asked for thousands of threads
+ * once does not keep them). */
+static unsigned crew_parked_max(void)
+{
+    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    return cores > 16 ? 2 * (unsigned)cores : 32;
+}
 
 /* In a child after fork() the parent's threads do not exist: forget them
  * (their records stay allocated) and start afresh. */
@@ -33,52 +46,41 @@ static void crew_init(void) { pthread_atfork(NULL, NULL, crew_after_fork_in_chil
 static void *crew_main(void *arg)
 {
     crew_thread *t = arg;
+    const unsigned parked_max = crew_parked_max();
     pthread_mutex_lock(&crew_lock);
     for (;;) {
         while (!t->batch && !crew_quit) pthread_cond_wait(&t->wake, &crew_lock);
-        if (!t->batch) break; /* quitting, and parked: leave the idle list */
+        if (!t->batch) break; /* unloading: crew_release took it off the idle list and joins it */
         as_crew_batch *b = t->batch;
         const unsigned i = t->index;
         pthread_mutex_unlock(&crew_lock);
         b->fn(b->user, i);
         pthread_mutex_lock(&crew_lock);
         t->batch = NULL;
-        t->next_idle = crew_idle;
-        crew_idle = t;
-        crew_parked++;
+        const int leave = crew_quit || crew_parked >= parked_max;
+        if (!leave) {
+            t->next_idle = crew_idle;
+            crew_idle = t;
+            crew_parked++;
+        }
         /* b may be gone once its owner sees it finished: nothing of it is
          * read after this. */
         if (++b->finished == b->n - b->unstarted) pthread_cond_broadcast(&crew_done);
+        if (leave) {
+            pthread_mutex_unlock(&crew_lock);
+            pthread_detach(pthread_self());
+            pthread_cond_destroy(&t->wake);
+            free(t);
+            return NULL;
+        }
     }
-    /* Unloading: off the idle list, and the unloader told. */
-    crew_thread **at = &crew_idle;
-    while (*at && *at != t) at = &(*at)->next_idle;
-    if (*at) {
-        *at = t->next_idle;
-        crew_parked--;
-    }
-    pthread_cond_broadcast(&crew_done);
     pthread_mutex_unlock(&crew_lock);
-    pthread_cond_destroy(&t->wake);
-    free(t);
     return NULL;
 }
 
-/* When the library is unloaded (dlclose, or the process ending), the parked
- * threads leave, so that none waits in code that is no longer there;
- * threads still running a step (a build on another thread) are not waited
- * for. */
-__attribute__((destructor)) static void crew_release(void)
-{
-    pthread_mutex_lock(&crew_lock);
-    crew_quit = 1;
-    for (crew_thread *t = crew_idle; t; t = t->next_idle) pthread_cond_signal(&t->wake);
-    while (crew_parked > 0) pthread_cond_wait(&crew_done, &crew_lock);
-    pthread_mutex_unlock(&crew_lock);
-}
-
 /* A new thread, waiting (not on the idle list); NULL when none could be
- * started. Called with crew_lock held. */
+ * started. Called with crew_lock held. The thread blocks every signal, so
+ * that signals go to the application's own threads. */
 static crew_thread *crew_new_thread(void)
 {
     crew_thread *t = calloc(1, sizeof *t);
@@ -87,20 +89,39 @@ static crew_thread *crew_new_thread(void)
         free(t);
         return NULL;
     }
-    pthread_attr_t attr;
-    pthread_t tid;
-    int ok = pthread_attr_init(&attr) == 0;
-    if (ok) {
-        pthread_attr_setdetachstate(&attr, PTHREAD_CREATE_DETACHED);
-        ok = pthread_create(&tid, &attr, crew_main, t) == 0;
-        pthread_attr_destroy(&attr);
-    }
+    sigset_t all, old;
+    sigfillset(&all);
+    pthread_sigmask(SIG_SETMASK, &all, &old);
+    const int ok = pthread_create(&t->tid, NULL, crew_main, t) == 0;
+    pthread_sigmask(SIG_SETMASK, &old, NULL);
     if (!ok) {
         pthread_cond_destroy(&t->wake);
         free(t);
         return NULL;
     }
     return t;
+}
+
+/* When the library is unloaded (dlclose, or the process ending), the
+ * waiting threads are told to leave and joined, so that none is left in
+ * code that is no longer there. Threads still running a step (a build on
+ * another thread) are not waited for: they leave when they finish. */
+__attribute__((destructor)) static void crew_release(void)
+{
+    pthread_mutex_lock(&crew_lock);
+    crew_quit = 1;
+    crew_thread *leaving = crew_idle;
+    crew_idle = NULL;
+    crew_parked = 0;
+    for (crew_thread *t = leaving; t; t = t->next_idle) pthread_cond_signal(&t->wake);
+    pthread_mutex_unlock(&crew_lock);
+    while (leaving) {
+        crew_thread *t = leaving;
+        leaving = t->next_idle;
+        pthread_join(t->tid, NULL);
+        pthread_cond_destroy(&t->wake);
+        free(t);
+    }
 }
 
 void as_crew_start(as_crew_batch *b, unsigned n, void (*fn)(void *user, unsigned i), void *user)
@@ -118,7 +139,7 @@ void as_crew_start(as_crew_batch *b, unsigned n, void (*fn)(void *user, unsigned
             crew_idle = t->next_idle;
             crew_parked--;
         } else {
-            t = crew_new_thread();
+            t = crew_quit ? NULL : crew_new_thread();
         }
         if (!t) {
             b->unstarted = n - i;
