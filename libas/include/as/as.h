@@ -13,6 +13,9 @@
  * All functions are thread-safe unless their comment says otherwise; a
  * handle may be read from several threads at once but not released while in
  * use.
+ * Builds and CPU work run on threads the library keeps from one call to the
+ * next (at most twice the cores, 32 at least, wait between calls); they
+ * block every signal, and they leave when the library is unloaded.
  */
 #ifndef AS_AS_H
 #define AS_AS_H
