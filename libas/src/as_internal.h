@@ -45,6 +45,14 @@ static inline int as_mul_u64(uint64_t a, uint64_t b, uint64_t *out)
 /* Monotonic clock in milliseconds. */
 double as_now_ms(void);
 
+/* Piece i of n of [0, total): [*first, *end), the pieces' sizes within one
+ * of each other and not depending on which thread asks. */
+static inline void as_chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first, uint32_t *end)
+{
+    *first = (uint32_t)((uint64_t)total * i / n);
+    *end = (uint32_t)((uint64_t)total * (i + 1) / n);
+}
+
 /* Number of worker threads for a request (0: online cores). */
 unsigned as_thread_count(unsigned requested);
 

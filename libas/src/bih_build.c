@@ -266,8 +266,8 @@ static void init_chunk(void *user, size_t ch)
 {
     bih_init_job *j = user;
     const as_mesh_t *mesh = j->mesh;
-    const uint32_t first = (uint32_t)((uint64_t)mesh->triangle_count * ch / j->chunks);
-    const uint32_t end = (uint32_t)((uint64_t)mesh->triangle_count * (ch + 1) / j->chunks);
+    uint32_t first, end;
+    as_chunk_range(mesh->triangle_count, (unsigned)ch, j->chunks, &first, &end);
     float lo[3], hi[3], clo[3], chi[3];
     box_reset(lo, hi);
     box_reset(clo, chi);
@@ -380,8 +380,8 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
         init.chunks = mesh->triangle_count >= 65536 ? INIT_CHUNKS : 1;
         uint32_t k = 0;
         for (unsigned ch = 0; ch < init.chunks; ++ch) {
-            const uint32_t first = (uint32_t)((uint64_t)mesh->triangle_count * ch / init.chunks);
-            const uint32_t end = (uint32_t)((uint64_t)mesh->triangle_count * (ch + 1) / init.chunks);
+            uint32_t first, end;
+            as_chunk_range(mesh->triangle_count, ch, init.chunks, &first, &end);
             init.offset[ch] = k;
             k += end - first - as_mesh_degenerate_in_range(mesh, first, end);
         }

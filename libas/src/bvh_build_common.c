@@ -21,18 +21,12 @@ typedef struct init_job {
     bvh_box box[256], cbox[256];
 } init_job;
 
-static void chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first, uint32_t *end)
-{
-    *first = (uint32_t)((uint64_t)total * i / n);
-    *end = (uint32_t)((uint64_t)total * (i + 1) / n);
-}
-
 static void init_fill(void *user, unsigned c, unsigned n)
 {
     init_job *job = user;
     const as_mesh_t *mesh = job->b->mesh;
     uint32_t first, end, k = job->offset[c];
-    chunk_range(mesh->triangle_count, c, n, &first, &end);
+    as_chunk_range(mesh->triangle_count, c, n, &first, &end);
     bvh_box box = bvh_box_empty(), cbox = bvh_box_empty();
     for (uint32_t i = first; i < end; ++i) {
         if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
@@ -92,7 +86,7 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
     uint32_t n = 0;
     for (unsigned c = 0; c < job.chunks; ++c) {
         uint32_t first, end;
-        chunk_range(mesh->triangle_count, c, job.chunks, &first, &end);
+        as_chunk_range(mesh->triangle_count, c, job.chunks, &first, &end);
         job.offset[c] = n;
         n += end - first - as_mesh_degenerate_in_range(mesh, first, end);
     }
@@ -444,7 +438,7 @@ static void par_bin(void *user, unsigned c, unsigned n)
         const uint32_t k = atomic_fetch_add_explicit(&j->next, 1, memory_order_relaxed);
         if (k >= j->pieces) break;
         uint32_t first, end;
-        chunk_range(j->count, k, j->pieces, &first, &end);
+        as_chunk_range(j->count, k, j->pieces, &first, &end);
         bin_all(j->refs + first, end - first, j->vcmin, j->vscale, j->last, j->nb, tmp);
         obj_bins_merge(acc, tmp, j->nb);
     }
@@ -862,7 +856,7 @@ static void par_mark(void *user, unsigned c, unsigned n)
 {
     par_part_job *j = user;
     uint32_t w0, w1;
-    chunk_range(j->nwords, c, n, &w0, &w1);
+    as_chunk_range(j->nwords, c, n, &w0, &w1);
     mark_sides(j->refs, j->count, j->s, j->bits, w0, w1, &j->part[c]);
 }
 
@@ -870,7 +864,7 @@ static void par_swap(void *user, unsigned c, unsigned n)
 {
     par_part_job *j = user;
     uint32_t k0, k1;
-    chunk_range(j->misplaced, c, n, &k0, &k1);
+    as_chunk_range(j->misplaced, c, n, &k0, &k1);
     swap_misplaced(j->refs, j->bits, j->nl, j->nwords, k0, k1);
 }
 

@@ -265,7 +265,8 @@ static void grid_bounds_chunk(void *user, size_t ch)
     bounds_job *j = user;
     const as_mesh_t *m = j->mesh;
     const uint32_t nt = m->triangle_count;
-    const uint32_t begin = (uint32_t)((uint64_t)nt * ch / j->chunks), end = (uint32_t)((uint64_t)nt * (ch + 1) / j->chunks);
+    uint32_t begin, end;
+    as_chunk_range(nt, (unsigned)ch, j->chunks, &begin, &end);
     float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
     uint32_t n = 0;
     for (uint32_t i = begin; i < end; ++i) {

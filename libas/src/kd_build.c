@@ -371,13 +371,13 @@ typedef struct kd_partition {
     const kd_ref *refs;
     const kd_split *sp;
     kd_ref *out[2];
-    uint32_t at[2], clipped_at[2]; /* the whole node's counts, after partition_range or partition_in_chunks */
+    uint32_t at[2], clipped_at[2]; /* the whole node's counts, after partition_range or partition_fill_chunks */
     uint32_t *clipped[2];          /* NULL: not recorded */
     uint16_t *side;                /* NULL: not recorded */
     uint32_t n;
     unsigned chunks;
     float box[2][6];
-    /* partition_in_chunks: each chunk's counts, then where it writes. */
+    /* partition_count_chunks: each chunk's counts, then where it writes. */
     uint32_t (*chunk_at)[4];
 } kd_partition;
 
@@ -408,8 +408,9 @@ static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint3
 }
 
 /* A big node's partition on the build's threads: contiguous chunks, each
- * counted, then each written from where the chunks before it end, so the
- * children's arrays are those of one pass. */
+ * counted (which also gives the children's sizes), then each written from
+ * where the chunks before it end, so the children's arrays are those of one
+ * pass. */
 static unsigned partition_chunks(const kd_ctx *c, uint32_t n)
 {
     const unsigned threads = as_thread_count(c->args->thread_count);
@@ -419,19 +420,13 @@ static unsigned partition_chunks(const kd_ctx *c, uint32_t n)
     return chunks;
 }
 
-static void chunk_bounds(uint32_t n, unsigned i, unsigned chunks, uint32_t *begin, uint32_t *end)
-{
-    *begin = (uint32_t)((uint64_t)n * i / chunks);
-    *end = (uint32_t)((uint64_t)n * (i + 1) / chunks);
-}
-
 static void partition_count_chunk(void *user, unsigned i, unsigned n)
 {
     kd_partition *p = user;
     (void)n;
     const kd_split *sp = p->sp;
     uint32_t begin, end, nl = 0, nr = 0, cl = 0, cr = 0;
-    chunk_bounds(p->n, i, p->chunks, &begin, &end);
+    as_chunk_range(p->n, i, p->chunks, &begin, &end);
     for (uint32_t k = begin; k < end; ++k) {
         const kd_ref *r = &p->refs[k];
         const unsigned l = (unsigned)goes_left(r, sp), rt = (unsigned)goes_right(r, sp);
@@ -451,26 +446,39 @@ static void partition_fill_chunk(void *user, unsigned i, unsigned n)
     kd_partition *p = user;
     (void)n;
     uint32_t begin, end;
-    chunk_bounds(p->n, i, p->chunks, &begin, &end);
+    as_chunk_range(p->n, i, p->chunks, &begin, &end);
     uint32_t at[2] = {p->chunk_at[i][0], p->chunk_at[i][1]}, clipped_at[2] = {p->chunk_at[i][2], p->chunk_at[i][3]};
     partition_range(p, begin, end, at, clipped_at);
 }
 
-static void partition_in_chunks(kd_partition *p, uint32_t n, unsigned chunks)
+/* The chunks' counts (chunk_at has room for `chunks`), and the node's sums:
+ * the references going left and right. */
+static void partition_count_chunks(kd_partition *p, uint32_t n, unsigned chunks, uint32_t (*chunk_at)[4],
+                                   uint32_t *nl, uint32_t *nr)
 {
-    uint32_t chunk_at[KD_PARTITION_CHUNKS][4];
     p->n = n;
     p->chunks = chunks;
     p->chunk_at = chunk_at;
     as_parallel_run(chunks, partition_count_chunk, p);
+    *nl = *nr = 0;
+    for (unsigned i = 0; i < chunks; ++i) {
+        *nl += chunk_at[i][0];
+        *nr += chunk_at[i][1];
+    }
+}
+
+/* After partition_count_chunks: each chunk written from where the chunks
+ * before it end. */
+static void partition_fill_chunks(kd_partition *p)
+{
     uint32_t sum[4] = {0, 0, 0, 0};
-    for (unsigned i = 0; i < chunks; ++i)
+    for (unsigned i = 0; i < p->chunks; ++i)
         for (int k = 0; k < 4; ++k) {
             const uint32_t v = p->chunk_at[i][k];
             p->chunk_at[i][k] = sum[k];
             sum[k] += v;
         }
-    as_parallel_run(chunks, partition_fill_chunk, p);
+    as_parallel_run(p->chunks, partition_fill_chunk, p);
     p->at[0] = sum[0];
     p->at[1] = sum[1];
     p->clipped_at[0] = sum[2];
@@ -495,12 +503,22 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
         }
+        /* Where the references go, counted once: a big node's chunks are
+         * counted on every thread and filled from those counts. */
+        kd_partition part = {.c = c, .refs = refs, .sp = &sp};
         uint32_t nl = 0, nr = 0;
-        for (uint32_t i = 0; i < n; ++i) {
-            nl += (uint32_t)goes_left(&refs[i], &sp);
-            nr += (uint32_t)goes_right(&refs[i], &sp);
+        const unsigned chunks = partition_chunks(c, n);
+        uint32_t(*chunk_at)[4] = chunks > 1 ? malloc(sizeof *chunk_at * chunks) : NULL;
+        if (chunk_at) {
+            partition_count_chunks(&part, n, chunks, chunk_at, &nl, &nr);
+        } else {
+            for (uint32_t i = 0; i < n; ++i) {
+                nl += (uint32_t)goes_left(&refs[i], &sp);
+                nr += (uint32_t)goes_right(&refs[i], &sp);
+            }
         }
         if ((nl == n && nr == n) || (double)nl + (double)nr > t.share) {
+            free(chunk_at);
             *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
             return;
         }
@@ -508,6 +526,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         const int hand_down = ops->child_states != NULL;
         kd_tmp *node = new_tmp(run, sc);
         if (!lr || !rr || !node || (hand_down && !scratch_clipped_room(sc, n))) {
+            free(chunk_at);
             free(lr);
             free(rr);
             atomic_store(&run->oom, 1);
@@ -519,16 +538,18 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         memcpy(rbox, box, sizeof rbox);
         lbox[sp.axis + 3] = sp.pos;
         rbox[sp.axis] = sp.pos;
-        kd_partition part = {.c = c, .refs = refs, .sp = &sp, .out = {lr, rr}, .side = hand_down ? sc->side : NULL};
+        part.out[0] = lr;
+        part.out[1] = rr;
+        part.side = hand_down ? sc->side : NULL;
         memcpy(part.box[0], lbox, sizeof lbox);
         memcpy(part.box[1], rbox, sizeof rbox);
         if (hand_down) {
             part.clipped[0] = sc->clipped[0];
             part.clipped[1] = sc->clipped[1];
         }
-        const unsigned chunks = partition_chunks(c, n);
-        if (chunks > 1) {
-            partition_in_chunks(&part, n, chunks);
+        if (chunk_at) {
+            partition_fill_chunks(&part);
+            free(chunk_at);
         } else {
             partition_range(&part, 0, n, part.at, part.clipped_at);
         }
@@ -637,18 +658,12 @@ typedef struct kd_init_job {
 static float min2(float a, float b) { return a < b ? a : b; }
 static float max2(float a, float b) { return a > b ? a : b; }
 
-static void init_chunk_range(uint32_t total, unsigned i, unsigned n, uint32_t *first, uint32_t *end)
-{
-    *first = (uint32_t)((uint64_t)total * i / n);
-    *end = (uint32_t)((uint64_t)total * (i + 1) / n);
-}
-
 static void init_fill(void *user, unsigned ch, unsigned chunks)
 {
     kd_init_job *job = user;
     const as_mesh_t *mesh = job->mesh;
     uint32_t first, end, k = job->offset[ch];
-    init_chunk_range(mesh->triangle_count, ch, chunks, &first, &end);
+    as_chunk_range(mesh->triangle_count, ch, chunks, &first, &end);
     float box[6] = {FLT_MAX, FLT_MAX, FLT_MAX, -FLT_MAX, -FLT_MAX, -FLT_MAX};
     for (uint32_t i = first; i < end; ++i) {
         if (as_mesh_triangle_is_degenerate(mesh, i)) continue;
@@ -693,7 +708,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     uint32_t n = 0;
     for (unsigned ch = 0; ch < init.chunks; ++ch) {
         uint32_t first, end;
-        init_chunk_range(mesh->triangle_count, ch, init.chunks, &first, &end);
+        as_chunk_range(mesh->triangle_count, ch, init.chunks, &first, &end);
         init.offset[ch] = n;
         n += end - first - as_mesh_degenerate_in_range(mesh, first, end);
     }

@@ -1,11 +1,11 @@
 /* Threads kept between parallel steps (see thread_crew.h). */
 #define _POSIX_C_SOURCE 200809L /* pthread_sigmask */
 #include "thread_crew.h"
+#include "as_internal.h"
 
 #include <pthread.h>
 #include <signal.h>
 #include <stdlib.h>
-#include <unistd.h>
 
 typedef struct crew_thread {
     pthread_t tid;
@@ -27,8 +27,8 @@ static pthread_once_t crew_once = PTHREAD_ONCE_INIT;
  * once does not keep them). */
 static unsigned crew_parked_max(void)
 {
-    const long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    return cores > 16 ? 2 * (unsigned)cores : 32;
+    const unsigned cores = as_thread_count(0);
+    return cores > 16 ? 2 * cores : 32;
 }
 
 /* In a child after fork() the parent's threads do not exist: forget them
