@@ -203,7 +203,10 @@ typedef struct as_build_args {
                                     the triangle count (default 4) */
     float sbvh_alpha;            /* SBVH: try spatial splits when the child
                                     boxes overlap by more than this fraction
-                                    of the root's area (default 1e-5) */
+                                    of the root's area (default 1e-5); in
+                                    nodes of 1024 references or fewer also
+                                    by a tenth of the node's own area, and
+                                    never in nodes of 4 or fewer */
 } as_build_args_t;
 
 void as_build_args_default(as_build_args_t *args);
