@@ -504,13 +504,17 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             return;
         }
         /* Where the references go, counted once: a big node's chunks are
-         * counted on every thread and filled from those counts. */
+         * counted on every thread and filled from those counts; the SAH
+         * sweep's plane comes with its counts. */
         kd_partition part = {.c = c, .refs = refs, .sp = &sp};
         uint32_t nl = 0, nr = 0;
         const unsigned chunks = partition_chunks(c, n);
         uint32_t(*chunk_at)[4] = chunks > 1 ? malloc(sizeof *chunk_at * chunks) : NULL;
         if (chunk_at) {
             partition_count_chunks(&part, n, chunks, chunk_at, &nl, &nr);
+        } else if (sp.counted) {
+            nl = sp.count[0];
+            nr = sp.count[1];
         } else {
             for (uint32_t i = 0; i < n; ++i) {
                 nl += (uint32_t)goes_left(&refs[i], &sp);

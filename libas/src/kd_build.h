@@ -21,6 +21,11 @@ typedef struct kd_split {
     int axis;          /* 0..2 */
     float pos;         /* strictly inside the node box */
     int planar_left;   /* triangles lying in the plane go below (1) or above (0) */
+    /* The references each child gets, when the builder knows them (the SAH
+     * sweep counts them): counted is 1 and count[] is what the driver's own
+     * count would give; 0 leaves the counting to the driver. */
+    int counted;
+    uint32_t count[2];
 } kd_split;
 
 struct kd_ctx;

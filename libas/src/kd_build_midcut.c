@@ -23,6 +23,7 @@ static int midcut_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint3
     out->axis = axis;
     out->pos = pos;
     out->planar_left = 1;
+    out->counted = 0;
     return 1;
 }
 

@@ -595,6 +595,7 @@ typedef struct axis_best {
     float pos;
     int planar_left;
     int found;
+    uint32_t count[2]; /* the references each side gets (kd_split.count) */
 } axis_best;
 
 typedef struct choose_job {
@@ -665,6 +666,7 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
     double best = cj->limit, threshold = best * (1.0 + SWEEP_MARGIN);
     float best_pos = 0.0f;
     int best_planar_left = 0, found = 0;
+    uint32_t best_count[2] = {0, 0};
     sweep_chunk g;
     uint64_t counts = ((uint64_t)planars0 << 32) | ends0;
     g.key_events[0] = begin;
@@ -721,10 +723,17 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
             const uint32_t nl = nl0 + p_eq;
             const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
             const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
+            /* The children's sizes: the driver's sides also give a
+             * triangle that starts or ends in the plane to both children,
+             * which the cost, as in Wald & Havran, does not count. */
+            const uint32_t e_eq = (uint32_t)g.counts[q] - (uint32_t)g.counts[q - 1];
+            const uint32_t s_eq = (uint32_t)g.key_events[q] - (uint32_t)g.key_events[q - 1] - e_eq - p_eq;
             if (cost < best) {
                 best = cost;
                 best_pos = pos;
                 best_planar_left = 1;
+                best_count[0] = nl + s_eq;
+                best_count[1] = nr0 + e_eq;
                 found = 1;
             }
             const uint32_t nr = nr0 + p_eq;
@@ -734,6 +743,8 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
                 best = cost_r;
                 best_pos = pos;
                 best_planar_left = 0;
+                best_count[0] = nl0 + s_eq;
+                best_count[1] = nr + e_eq;
                 found = 1;
             }
             if (best * (1.0 + SWEEP_MARGIN) < threshold) threshold = best * (1.0 + SWEEP_MARGIN);
@@ -745,6 +756,8 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
     b->pos = best_pos;
     b->planar_left = best_planar_left;
     b->found = found;
+    b->count[0] = best_count[0];
+    b->count[1] = best_count[1];
 }
 
 static void sweep_axis(void *user, int axis)
@@ -883,6 +896,9 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
             out->axis = axis;
             out->pos = b->pos;
             out->planar_left = b->planar_left;
+            out->counted = 1;
+            out->count[0] = b->count[0];
+            out->count[1] = b->count[1];
             found = 1;
         }
     }
