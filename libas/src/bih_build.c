@@ -355,9 +355,14 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     pthread_mutex_init(&b.progress_lock, NULL);
     const uint32_t n = mesh->triangle_count - mesh->degenerate_count;
     b.total = n;
-    b.refs = as_malloc(sizeof(bih_ref) * (size_t)(n ? n : 1), "BIH references");
+    /* The build's arrays and the sections from blocks earlier builds gave
+     * back (as the BVH builders): fresh ones cost a page fault per 4 KB at
+     * every build, and the faults of many threads wait on each other. */
+    const size_t refs_bytes = sizeof(bih_ref) * (size_t)(n ? n : 1);
+    b.refs = as_block_take(refs_bytes, 0, "BIH references");
     b.node_capacity = 2 * (uint64_t)n + 1;
-    b.nodes = as_malloc(sizeof(bih_tmp) * b.node_capacity, "BIH build nodes");
+    const size_t nodes_bytes = sizeof(bih_tmp) * b.node_capacity;
+    b.nodes = as_block_take(nodes_bytes, 0, "BIH build nodes");
     as_bih_node_t *out = NULL;
     uint32_t *prims = NULL;
     as_tri4_t *tris = NULL;
@@ -419,18 +424,20 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     s->meta.reference_count = f.prim_count;
     s->meta.max_depth = f.max_depth;
     s->meta.max_depth_limit = b.depth_limit;
-    as_structure_add_section(s, ASF_TAG_BIHN, out, f.out_count, sizeof(as_bih_node_t));
-    as_structure_add_section(s, ASF_TAG_PRIM, prims, f.prim_count, sizeof(uint32_t));
+    as_structure_add_kept_section(s, ASF_TAG_BIHN, out, f.out_count, sizeof(as_bih_node_t),
+                                  sizeof(as_bih_node_t) * node_count);
+    as_structure_add_kept_section(s, ASF_TAG_PRIM, prims, f.prim_count, sizeof(uint32_t),
+                                  sizeof(uint32_t) * (size_t)(n ? n : 1));
     as_spatial_add_tris(s, tris, mesh->triangle_count);
     s->meta.sah_cost = as_bih_sah_cost(s, NULL);
     s->build_ms = as_now_ms() - t_start;
-    free(b.refs);
-    free(b.nodes);
+    as_block_give(b.refs, refs_bytes, 0);
+    as_block_give(b.nodes, nodes_bytes, 0);
     pthread_mutex_destroy(&b.progress_lock);
     return AS_OK;
 fail:
-    free(b.refs);
-    free(b.nodes);
+    as_block_give(b.refs, refs_bytes, 0);
+    as_block_give(b.nodes, nodes_bytes, 0);
     free(out);
     free(prims);
     free(tris);
