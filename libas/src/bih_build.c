@@ -17,11 +17,12 @@
  * Determinism: the shape depends only on the input (sequential in-place
  * partitions per node); node and PRIM order come from one depth-first walk
  * after the build, so the output is byte-identical for any thread count.
- * Subtrees of at least PARALLEL_MIN_PRIMS objects on both sides go to other
- * threads. */
+ * A right child of at least PARALLEL_MIN_PRIMS objects goes to a thread
+ * that waits for work (task_pool.h). */
 #include "spatial_common.h"
 #include "bih_layout.h"
 #include "simd4.h"
+#include "task_pool.h"
 
 #include <float.h>
 #include <math.h>
@@ -30,7 +31,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PARALLEL_MIN_PRIMS 8192
+/* A right child of this many objects or more goes to a waiting thread. */
+#define PARALLEL_MIN_PRIMS 4096
 /* Retries of the global heuristic before the list-half fallback. */
 #define MAX_EMPTY_RETRIES 128
 
@@ -55,8 +57,6 @@ typedef struct bih_builder {
     uint64_t node_capacity;
     atomic_uint_fast64_t node_next;
     uint32_t depth_limit;
-    atomic_int live_threads;
-    int max_threads;
     atomic_uint_fast64_t done;
     uint64_t total;
     atomic_int cancelled;
@@ -97,14 +97,13 @@ typedef struct bih_boxes {
 } bih_boxes;
 
 typedef struct bih_task {
-    bih_builder *b;
     int32_t node;
     uint32_t first, count, depth;
     bih_boxes boxes;
 } bih_task;
 
-static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t count, uint32_t depth,
-                       const bih_boxes *in);
+static void build_node(as_task_pool *pool, bih_builder *b, int32_t node, uint32_t first, uint32_t count,
+                       uint32_t depth, const bih_boxes *in);
 
 static void centre_grow(const bih_ref *r, float lo[3], float hi[3])
 {
@@ -123,16 +122,15 @@ static void box_reset(float lo[3], float hi[3])
     }
 }
 
-static void *build_thread(void *arg)
+static void build_task(as_task_pool *pool, void *task, void *user)
 {
-    bih_task *t = arg;
-    build_node(t->b, t->node, t->first, t->count, t->depth, &t->boxes);
-    atomic_fetch_sub(&t->b->live_threads, 1);
-    return NULL;
+    bih_task t;
+    memcpy(&t, task, sizeof t);
+    build_node(pool, user, t.node, t.first, t.count, t.depth, &t.boxes);
 }
 
-static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t count, uint32_t depth,
-                       const bih_boxes *in)
+static void build_node(as_task_pool *pool, bih_builder *b, int32_t node, uint32_t first, uint32_t count,
+                       uint32_t depth, const bih_boxes *in)
 {
     if (atomic_load(&b->cancelled) || count <= b->args->max_leaf_size || depth >= b->depth_limit) {
         make_leaf(b, node, first, count);
@@ -239,17 +237,11 @@ static void build_node(bih_builder *b, int32_t node, uint32_t first, uint32_t co
     n->clip[1] = rmin;
     n->first = n->count = 0;
     const uint32_t lcount = mid - first, rcount = first + count - mid;
-    bih_task task = {b, (int32_t)l, first, lcount, depth + 1, lb};
-    pthread_t tid;
-    int spawned = 0;
-    if (lcount >= PARALLEL_MIN_PRIMS && rcount >= PARALLEL_MIN_PRIMS) {
-        if (atomic_fetch_add(&b->live_threads, 1) < b->max_threads)
-            spawned = pthread_create(&tid, NULL, build_thread, &task) == 0;
-        if (!spawned) atomic_fetch_sub(&b->live_threads, 1);
-    }
-    if (!spawned) build_node(b, (int32_t)l, first, lcount, depth + 1, &lb);
-    build_node(b, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
-    if (spawned) pthread_join(tid, NULL);
+    const bih_task right = {(int32_t)l + 1, mid, rcount, depth + 1, rb};
+    const int shared =
+        pool && rcount >= PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &right);
+    build_node(pool, b, (int32_t)l, first, lcount, depth + 1, &lb);
+    if (!shared) build_node(pool, b, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
 }
 
 #define INIT_CHUNKS 64
@@ -313,13 +305,18 @@ typedef struct bih_flat {
     uint32_t prim_count;
     uint64_t leaves, empty_leaves;
     uint32_t max_depth;
+    double ci, ct, root_area, sah;
 } bih_flat;
 
-/* Writes tmp node `t` at out[o]; its children go to two adjacent slots. */
-static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth)
+/* Writes tmp node `t`, whose box is lo-hi, at out[o]; its children go to
+ * two adjacent slots. The SAH cost is summed on the way, node by node in
+ * the order of as_bih_sah_cost's walk (pre-order) and with its terms, so
+ * the sum is that walk's to the last bit without a second walk. */
+static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth, const float lo[3], const float hi[3])
 {
     const bih_tmp *n = &f->b->nodes[t];
     as_bih_node_t *d = &f->out[o];
+    const double rel = f->root_area > 0 ? as_spatial_half_area(lo, hi) / f->root_area : 1.0;
     if (n->left < 0) {
         d->info = (f->prim_count << 2) | AS_BIH_LEAF;
         d->clip[0] = as_uint_as_float(n->count);
@@ -327,15 +324,24 @@ static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth)
         for (uint32_t i = 0; i < n->count; ++i) f->prims[f->prim_count++] = f->b->refs[n->first + i].id;
         if (n->count) f->leaves++; else f->empty_leaves++;
         if (depth > f->max_depth) f->max_depth = depth;
+        f->sah += f->ci * n->count * rel;
         return;
     }
+    f->sah += f->ct * rel;
     const uint64_t c = f->out_count;
     f->out_count += 2;
     d->info = ((uint32_t)c << 2) | n->axis;
     d->clip[0] = n->clip[0];
     d->clip[1] = n->clip[1];
-    flatten(f, n->left, c, depth + 1);
-    flatten(f, n->left + 1, c + 1, depth + 1);
+    float llo[3], lhi[3], rlo[3], rhi[3];
+    memcpy(llo, lo, sizeof llo);
+    memcpy(lhi, hi, sizeof lhi);
+    memcpy(rlo, lo, sizeof rlo);
+    memcpy(rhi, hi, sizeof rhi);
+    if (n->clip[0] < lhi[n->axis]) lhi[n->axis] = n->clip[0];
+    if (n->clip[1] > rlo[n->axis]) rlo[n->axis] = n->clip[1];
+    flatten(f, n->left, c, depth + 1, llo, lhi);
+    flatten(f, n->left + 1, c + 1, depth + 1, rlo, rhi);
 }
 
 as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
@@ -349,7 +355,6 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     bih_builder b;
     memset(&b, 0, sizeof b);
     b.args = args;
-    b.max_threads = (int)as_thread_count(args->thread_count) - 1;
     /* Node depth d needs d stack entries; leaves at AS_BIH_MAX_DEPTH at most. */
     b.depth_limit = args->max_depth && args->max_depth < AS_BIH_MAX_DEPTH ? args->max_depth : AS_BIH_MAX_DEPTH;
     pthread_mutex_init(&b.progress_lock, NULL);
@@ -403,7 +408,11 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     memcpy(root.cand_lo, lo, sizeof lo);
     memcpy(root.cand_hi, hi, sizeof hi);
     atomic_store(&b.node_next, 1);
-    build_node(&b, 0, 0, n, 0, &root);
+    const bih_task first_task = {0, 0, n, 0, root};
+    const unsigned threads = as_thread_count(args->thread_count);
+    if (threads < 2 || n < 2 * PARALLEL_MIN_PRIMS ||
+        !as_task_pool_run(threads, sizeof first_task, &first_task, build_task, &b))
+        build_node(NULL, &b, 0, 0, n, 0, &root);
     if (atomic_load(&b.cancelled)) {
         as_set_error(AS_ERROR_CANCELLED, "BIH build cancelled by the progress callback");
         goto fail;
@@ -414,8 +423,9 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
     if (!out || !prims || !tris) goto fail;
     memset(out, 0, sizeof(as_bih_node_t) * node_count);
-    bih_flat f = {&b, out, 1, prims, 0, 0, 0, 0};
-    flatten(&f, 0, 0, 0);
+    bih_flat f = {&b, out, 1, prims, 0, 0, 0, 0, args->cost_intersection, args->cost_traversal,
+                  as_spatial_half_area(mesh->bounds_lo, mesh->bounds_hi), 0.0};
+    flatten(&f, 0, 0, 0, mesh->bounds_lo, mesh->bounds_hi);
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_BIH, AS_LAYOUT_BIH, AS_BIH_LAYOUT_VERSION, AS_BUILDER_BIH);
     s->meta.node_count = f.out_count - f.leaves - f.empty_leaves;
@@ -429,7 +439,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     as_structure_add_kept_section(s, ASF_TAG_PRIM, prims, f.prim_count, sizeof(uint32_t),
                                   sizeof(uint32_t) * (size_t)(n ? n : 1));
     as_spatial_add_tris(s, tris, mesh->triangle_count);
-    s->meta.sah_cost = as_bih_sah_cost(s, NULL);
+    s->meta.sah_cost = f.sah;
     s->build_ms = as_now_ms() - t_start;
     as_block_give(b.refs, refs_bytes, 0);
     as_block_give(b.nodes, nodes_bytes, 0);
