@@ -7,6 +7,7 @@
  * of one triangle (depth within the cap, nodes linear in N, the lowest index
  * hit); a small dense cluster in a large scene subdivided; a flat scene hit from both sides; quads lying exactly on split
  * planes and cell walls; zero-area triangles left out; the reference budget;
+ * the grid's cells those of testing every cell of a triangle's box;
  * validation rejecting damaged files. */
 #include "reference.h"
 #include "test_util.h"
@@ -15,7 +16,9 @@
 #include "bih_layout.h"
 #include "bvh2_layout.h"
 #include "grid_layout.h"
+#include "mesh.h"
 #include "octree_layout.h"
+#include "spatial_common.h"
 #include "structure.h"
 
 #include <math.h>
@@ -390,6 +393,121 @@ static void zero_area_triangles_are_left_out(void)
     as_mesh_release(m);
 }
 
+/* The grid's rule, tested cell by cell: a triangle is in every cell of its
+ * box (grown by four pads of the grid box) that as_tri_box_overlap accepts,
+ * every cell when its box is within one, and nowhere else. The builder
+ * tests only the cells a large slanted triangle's plane can reach; this
+ * tests them all. */
+static float grid_wall(const as_grid_header_t *g, int k, uint32_t i)
+{
+    return i >= g->dims[k] ? g->hi[k] : g->lo[k] + (float)i * g->cell[k];
+}
+
+static uint32_t grid_cell_of(const as_grid_header_t *g, int k, double x)
+{
+    const double f = (x - g->lo[k]) * g->inv_cell[k];
+    if (!(f > 0)) return 0;
+    if (f >= g->dims[k]) return g->dims[k] - 1;
+    return (uint32_t)f;
+}
+
+static size_t grid_cells_differing(const as_mesh_t *m, const as_structure_t *s)
+{
+    const as_grid_header_t *g = as_structure_find(s, ASF_TAG_GRDH)->data;
+    const uint32_t *off = as_structure_find(s, ASF_TAG_GRDC)->data, *prim = as_structure_find(s, ASF_TAG_PRIM)->data;
+    const double pad = 4.0 * as_spatial_pad(g->lo, g->hi);
+    size_t differing = 0;
+    for (uint32_t t = 0; t < m->triangle_count; ++t) {
+        if (as_mesh_triangle_is_degenerate(m, t)) continue;
+        const float *v[3];
+        for (int j = 0; j < 3; ++j) v[j] = m->positions + 3 * (size_t)m->indices[3 * (size_t)t + j];
+        uint32_t c0[3], c1[3];
+        int single = 1;
+        for (int k = 0; k < 3; ++k) {
+            const float lo = fminf(v[0][k], fminf(v[1][k], v[2][k])), hi = fmaxf(v[0][k], fmaxf(v[1][k], v[2][k]));
+            c0[k] = grid_cell_of(g, k, (double)lo - pad);
+            c1[k] = grid_cell_of(g, k, (double)hi + pad);
+            single &= c0[k] == c1[k];
+        }
+        for (uint32_t z = c0[2]; z <= c1[2]; ++z)
+            for (uint32_t y = c0[1]; y <= c1[1]; ++y)
+                for (uint32_t x = c0[0]; x <= c1[0]; ++x) {
+                    const float lo[3] = {grid_wall(g, 0, x), grid_wall(g, 1, y), grid_wall(g, 2, z)};
+                    const float hi[3] = {grid_wall(g, 0, x + 1), grid_wall(g, 1, y + 1), grid_wall(g, 2, z + 1)};
+                    const int expected = single || as_tri_box_overlap(v[0], v[1], v[2], lo, hi, as_spatial_pad(lo, hi));
+                    const size_t cell = ((size_t)z * g->dims[1] + y) * g->dims[0] + x;
+                    int found = 0;
+                    for (uint32_t i = off[cell]; i < off[cell + 1]; ++i) found |= prim[i] == t;
+                    differing += found != expected;
+                }
+    }
+    return differing;
+}
+
+static void grid_cells_are_those_of_testing_every_cell(void)
+{
+    if (kind != AS_STRUCT_GRID) return;
+    /* Small triangles with every 50th one 30 times larger; one triangle
+     * across the whole of a cube of small ones; a scene wider than
+     * FLT_MAX, whose walls past the float range are infinite. */
+    as_mesh_t *meshes[3];
+    meshes[0] = soup_mixed(33, 3000, 0.02f, 50);
+    {
+        const uint32_t n = 2000;
+        float *p = malloc(sizeof(float) * 9 * (n + 1));
+        uint32_t *ix = malloc(sizeof(uint32_t) * 3 * (n + 1));
+        uint64_t st = 5;
+        for (uint32_t t = 0; t < n; ++t) {
+            float c[3];
+            for (int k = 0; k < 3; ++k) c[k] = (float)ref_rand01(&st);
+            for (int q = 0; q < 9; ++q) p[9 * t + q] = c[q % 3] + 0.01f * (float)(ref_rand01(&st) - 0.5);
+        }
+        const float big[9] = {0.02f, 0.05f, 0.97f, 0.96f, 0.1f, 0.03f, 0.3f, 0.98f, 0.6f};
+        memcpy(p + 9 * n, big, sizeof big);
+        for (uint32_t i = 0; i < 3 * (n + 1); ++i) ix[i] = i;
+        meshes[1] = as_mesh_create(3 * (n + 1), p, n + 1, ix);
+        free(p);
+        free(ix);
+    }
+    {
+        /* 2,000 small triangles in a box 6e38 wide (about 20 cells per
+         * axis: i x cell leaves float's range from the 12th wall on) and
+         * three large ones. */
+        const uint32_t n = 2000;
+        const float big[27] = {-3e38f, -3e38f, -3e38f, 3e38f, -3e38f, -3e38f, -3e38f, 3e38f,  3e38f,
+                               3e38f,  3e38f,  3e38f,  -3e38f, 3e38f, -3e38f, 3e38f,  -3e38f, 3e38f,
+                               1e37f,  1e37f,  2e38f,  2.5e38f, 5e37f, 1e37f,  5e37f,  2.5e38f, 1.5e38f};
+        float *p = malloc(sizeof(float) * 9 * (n + 3));
+        uint32_t *ix = malloc(sizeof(uint32_t) * 3 * (n + 3));
+        uint64_t st = 9;
+        for (uint32_t t = 0; t < n; ++t) {
+            float c[3];
+            for (int k = 0; k < 3; ++k) c[k] = (float)((ref_rand01(&st) - 0.5) * 5.8e38);
+            for (int q = 0; q < 9; ++q) p[9 * t + q] = c[q % 3] + (float)((ref_rand01(&st) - 0.5) * 1e36);
+        }
+        memcpy(p + 9 * n, big, sizeof big);
+        for (uint32_t i = 0; i < 3 * (n + 3); ++i) ix[i] = i;
+        meshes[2] = as_mesh_create(3 * (n + 3), p, n + 3, ix);
+        free(p);
+        free(ix);
+    }
+    for (int k = 0; k < 3; ++k) {
+        CHECK(meshes[k] != NULL);
+        if (!meshes[k]) continue;
+        as_build_args_t args;
+        args_for(&args);
+        as_structure_t *s = as_structure_build(meshes[k], &args);
+        CHECK(s != NULL);
+        if (s) {
+            const size_t differing = grid_cells_differing(meshes[k], s);
+            if (differing) fprintf(stderr, "  mesh %d: %zu cells differ from testing every cell\n", k, differing);
+            CHECK_EQ_U64(differing, 0);
+            as_structure_release(s);
+        }
+        as_mesh_release(meshes[k]);
+    }
+}
+
 /* Large triangles crossing the whole scene among small ones. */
 static void references_stay_within_the_split_budget(void)
 {
@@ -528,6 +646,7 @@ int main(int argc, char **argv)
     RUN_TEST(quads_on_split_planes_are_hit_by_crossing_rays);
     RUN_TEST(zero_area_triangles_are_left_out);
     RUN_TEST(references_stay_within_the_split_budget);
+    RUN_TEST(grid_cells_are_those_of_testing_every_cell);
     RUN_TEST(validation_rejects_damaged_files);
     rmdir(tmpdir);
     TEST_EXIT();

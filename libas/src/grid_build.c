@@ -168,6 +168,10 @@ static int plane_lines_init(const grid_job *job, const float *a, const float *b,
     const as_grid_header_t *g = job->g;
     const uint64_t cells = (uint64_t)(c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) * (c1[2] - c0[2] + 1);
     if (cells < PLANE_LINES_MIN_CELLS) return 0;
+    /* Walls past float's range (a scene wider than FLT_MAX) are infinite,
+     * and the test passes every cell between them: every cell is tested. */
+    for (int k = 0; k < 3; ++k)
+        if (!isfinite(wall(g, k, g->dims[k] - 1)) || !isfinite(g->lo[k]) || !isfinite(g->hi[k])) return 0;
     double e0[3], e1[3];
     for (int k = 0; k < 3; ++k) {
         e0[k] = (double)b[k] - a[k];
