@@ -433,11 +433,14 @@ static void a_single_triangle_and_an_all_degenerate_mesh_build_and_trace(void)
 }
 
 /* A scene 2e-39 wide (subnormal floats) and flat: two triangles side by side
- * along x, each with a vertex at one end of the scene. Splitting between
- * them costs traversal + intersection against two intersections for a leaf,
- * so with a traversal cost below the intersection cost the SAH builder
- * splits; pricing the planes in single precision must not lose them (the
- * perimeter term, 1 / the width, is beyond float's range). */
+ * along x, each with a vertex at one end of the scene, the first ending at
+ * x = 5e-40 and the second starting at 1.5e-39. A plane at either bound
+ * leaves the triangle that touches it on both sides: one child of a quarter
+ * of the box holds one triangle, the other of three quarters both, which
+ * costs traversal + 1.75 intersections against two for a leaf. So with a
+ * traversal cost of 0.1 the SAH builder splits; pricing the planes in
+ * single precision must not lose them (the perimeter term, 1 / the width,
+ * is beyond float's range). */
 static void a_scene_thinner_than_floats_resolve_still_splits_where_it_pays(void)
 {
     if (strcmp(builder_name, "sah") != 0) return;
@@ -449,7 +452,7 @@ static void a_scene_thinner_than_floats_resolve_still_splits_where_it_pays(void)
     CHECK(m != NULL);
     if (!m) return;
     as_build_args_t a = kd_args(AS_LAYOUT_KD_STANDARD);
-    a.cost_traversal = 0.5f;
+    a.cost_traversal = 0.1f;
     a.cost_intersection = 1.0f;
     a.max_leaf_size = 1;
     as_structure_t *s = as_structure_build(m, &a);

@@ -4,12 +4,18 @@
  * Candidates are the bounds of every reference's clipped box (kd_build.c
  * clips triangles to the node box, so these are the "perfect" planes). Each
  * candidate plane is swept with three event kinds: end, planar, start.
- * A triangle counts below when it starts below the plane, above when it
- * ends above it; triangles lying in the plane are tried on either side and
- * put where the cost is lower (section 4.3 of the paper). The cost is
- * lambda (C_t + C_i (A_L N_L + A_R N_R) / A) with lambda = 0.8 when a side is
- * empty (the empty-space bonus); a node becomes a leaf when no plane costs
- * less than C_i N.
+ * A triangle counts below when it starts below or in the plane, above when
+ * it ends above or in it: the driver's sides (kd_build.c) give a triangle
+ * that touches the plane to both children, so the cost counts what each
+ * child will hold. (Wald & Havran count a triangle that ends in the plane
+ * below only and one that starts in it above only, as their sides do; with
+ * this driver that undercounted, and its trees traced 1.16 to 1.9 times
+ * slower on the GPU on bunny, bathroom and bmw-m6, docs/results/
+ * 2026-11-26-build-bench-13.md.) Triangles lying in the plane are tried on
+ * either side and put where the cost is lower (section 4.3 of the paper).
+ * The cost is lambda (C_t + C_i (A_L N_L + A_R N_R) / A) with lambda = 0.8
+ * when a side is empty (the empty-space bonus); a node becomes a leaf when
+ * no plane costs less than C_i N.
  *
  * The events are sorted once, at the root, one list per axis (section 5 of
  * the paper). A node hands its lists down: the events of a reference that
@@ -691,9 +697,11 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
             const uint32_t bits = (key & 0x80000000u) ? key & 0x7fffffffu : ~key;
             float pos;
             memcpy(&pos, &bits, sizeof pos);
-            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1];
             const uint32_t p_eq = (uint32_t)(g.counts[q] >> 32) - (uint32_t)(g.counts[q - 1] >> 32);
-            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32));
+            const uint32_t e_eq = (uint32_t)g.counts[q] - (uint32_t)g.counts[q - 1];
+            const uint32_t s_eq = (uint32_t)g.key_events[q] - (uint32_t)g.key_events[q - 1] - e_eq - p_eq;
+            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1] + s_eq;
+            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32)) + e_eq;
             const float al = face_f + rim_f * (pos - lo_f), ar = face_f + rim_f * (hi_f - pos);
             const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
             const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
@@ -713,9 +721,11 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
         for (size_t q = 1; q < k; ++q) {
             const uint32_t key = (uint32_t)(g.key_events[q] >> 32);
             if (!(key > key_lo && key < key_hi) || (filter && !((double)g.cost[q] <= threshold))) continue;
-            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1];
             const uint32_t p_eq = (uint32_t)(g.counts[q] >> 32) - (uint32_t)(g.counts[q - 1] >> 32);
-            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32));
+            const uint32_t e_eq = (uint32_t)g.counts[q] - (uint32_t)g.counts[q - 1];
+            const uint32_t s_eq = (uint32_t)g.key_events[q] - (uint32_t)g.key_events[q - 1] - e_eq - p_eq;
+            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1] + s_eq;
+            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32)) + e_eq;
             const float pos = key_float(key);
             const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
             /* The group's planar triangles below first, then above (without
@@ -723,17 +733,14 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
             const uint32_t nl = nl0 + p_eq;
             const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
             const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
-            /* The children's sizes: the driver's sides also give a
-             * triangle that starts or ends in the plane to both children,
-             * which the cost, as in Wald & Havran, does not count. */
-            const uint32_t e_eq = (uint32_t)g.counts[q] - (uint32_t)g.counts[q - 1];
-            const uint32_t s_eq = (uint32_t)g.key_events[q] - (uint32_t)g.key_events[q - 1] - e_eq - p_eq;
+            /* The counts priced are the children's sizes: kept for the
+             * driver, which then need not count them. */
             if (cost < best) {
                 best = cost;
                 best_pos = pos;
                 best_planar_left = 1;
-                best_count[0] = nl + s_eq;
-                best_count[1] = nr0 + e_eq;
+                best_count[0] = nl;
+                best_count[1] = nr0;
                 found = 1;
             }
             const uint32_t nr = nr0 + p_eq;
@@ -743,8 +750,8 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
                 best = cost_r;
                 best_pos = pos;
                 best_planar_left = 0;
-                best_count[0] = nl0 + s_eq;
-                best_count[1] = nr + e_eq;
+                best_count[0] = nl0;
+                best_count[1] = nr;
                 found = 1;
             }
             if (best * (1.0 + SWEEP_MARGIN) < threshold) threshold = best * (1.0 + SWEEP_MARGIN);
