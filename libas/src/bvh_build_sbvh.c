@@ -744,10 +744,11 @@ static int sbvh_split(sbvh_ctx *ctx, sbvh_mem *m, const bvh_box *node_box, bvh_r
             ov.lo[a] = os.left.lo[a] > os.right.lo[a] ? os.left.lo[a] : os.right.lo[a];
             ov.hi[a] = os.left.hi[a] < os.right.hi[a] ? os.left.hi[a] : os.right.hi[a];
         }
-        const double overlap = box_valid(&ov) ? bvh_box_half_area(&ov) : 0.0;
         const double node_min = count <= SBVH_OVERLAP_NODE_REFS ? SBVH_OVERLAP_NODE_FRACTION * area : 0.0;
-        if (box_valid(&ov) && overlap > ctx->alpha_area && overlap >= node_min)
-            ss = find_spatial_split(ctx, refs, count, node_box, threads);
+        if (box_valid(&ov)) {
+            const double overlap = bvh_box_half_area(&ov);
+            if (overlap > ctx->alpha_area && overlap >= node_min) ss = find_spatial_split(ctx, refs, count, node_box, threads);
+        }
     }
     /* Where every centroid coincides (copies of one triangle) no spatial
      * split is tried: it would only duplicate the copies. */

@@ -64,6 +64,10 @@ typedef struct grid_job {
     atomic_int oom;
     grid_pairs *pairs;            /* one per block */
     unsigned range_shift, ranges; /* a cell's range is cell >> range_shift */
+    /* Every wall is finite. Walls past float's range (a scene wider than
+     * FLT_MAX) are infinite, the overlap test passes every cell between
+     * them, and pass 1 then tests every cell (plane_lines_init). */
+    int finite_walls;
 } grid_job;
 
 static int pairs_push(grid_pairs *p, uint32_t cell, uint32_t tri)
@@ -141,8 +145,6 @@ static int group_by_range(const grid_job *job, grid_pairs *p)
     return 1;
 }
 
-/* Pass 1 over a block: the cells of each triangle, kept as (cell, triangle)
- * pairs. */
 /* The cells a triangle's plane can reach, line by line. A large slanted
  * triangle's box holds far more cells than the triangle meets (one of
  * bmw-m6's reaches 755,508 of its 2,980,340 cells, a quarter of every
@@ -158,8 +160,7 @@ static int group_by_range(const grid_job *job, grid_pairs *p)
 typedef struct plane_lines {
     int s;                 /* the axis along the lines */
     double n[3], na;       /* the normal, n . a */
-    double reach;          /* r, at least, for every cell, with the allowance */
-    double slack;          /* the rounding allowance of n . centre */
+    double reach;          /* r, at least, for every cell, with the rounding allowance */
 } plane_lines;
 
 static int plane_lines_init(const grid_job *job, const float *a, const float *b, const float *c, const uint32_t c0[3],
@@ -167,11 +168,7 @@ static int plane_lines_init(const grid_job *job, const float *a, const float *b,
 {
     const as_grid_header_t *g = job->g;
     const uint64_t cells = (uint64_t)(c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) * (c1[2] - c0[2] + 1);
-    if (cells < PLANE_LINES_MIN_CELLS) return 0;
-    /* Walls past float's range (a scene wider than FLT_MAX) are infinite,
-     * and the test passes every cell between them: every cell is tested. */
-    for (int k = 0; k < 3; ++k)
-        if (!isfinite(wall(g, k, g->dims[k] - 1)) || !isfinite(g->lo[k]) || !isfinite(g->hi[k])) return 0;
+    if (cells < PLANE_LINES_MIN_CELLS || !job->finite_walls) return 0;
     double e0[3], e1[3];
     for (int k = 0; k < 3; ++k) {
         e0[k] = (double)b[k] - a[k];
@@ -192,8 +189,7 @@ static int plane_lines_init(const grid_job *job, const float *a, const float *b,
         reach += fabs(pl->n[k]) * (0.5 * (double)g->cell[k] * 1.001 + job->pad);
         size += fabs(pl->n[k]) * (fabs((double)g->lo[k]) + fabs((double)g->hi[k]) + (double)g->cell[k]);
     }
-    pl->slack = 1e-9 * (size + reach);
-    pl->reach = reach + pl->slack;
+    pl->reach = reach + 1e-9 * (size + reach);
     return isfinite(pl->reach) && isfinite(pl->na);
 }
 
@@ -223,6 +219,8 @@ static int plane_line(const as_grid_header_t *g, const plane_lines *pl, uint32_t
     return 1;
 }
 
+/* Pass 1 over a block: the cells of each triangle, kept as (cell, triangle)
+ * pairs. */
 static void grid_block(void *user, size_t block)
 {
     grid_job *job = user;
@@ -263,7 +261,7 @@ static void grid_block(void *user, size_t block)
         /* The cells of the box line by line along axis s, the normal's
          * largest component; a box of many cells tests only the part of
          * each line that the triangle's plane can reach (plane_line). */
-        plane_lines pl = {0, {0, 0, 0}, 0, 0, 0};
+        plane_lines pl = {0, {0, 0, 0}, 0, 0};
         const int lines = !single && plane_lines_init(job, a, b, c, c0, c1, &pl);
         const int s = lines ? pl.s : 0, u = (s + 1) % 3, w = (s + 2) % 3;
         uint32_t at[3];
@@ -546,6 +544,9 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         counts_cells = cells;
         if (!counts) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for %llu grid cells", (unsigned long long)cells); goto done; }
         job.counts = counts;
+        job.finite_walls = 1;
+        for (int k = 0; k < 3; ++k) /* walls grow with their index: the last one is the largest */
+            job.finite_walls &= isfinite(wall(g, k, g->dims[k] - 1)) && isfinite(g->lo[k]) && isfinite(g->hi[k]);
         /* Ranges of cells for the counting and filling passes: about four
          * per thread, each a power of two of cells. */
         job.range_shift = 0;

@@ -638,6 +638,21 @@ typedef struct sweep_chunk {
  * by kind. */
 static const uint64_t sweep_count_step[4] = {1, (uint64_t)1 << 32, 0, 0};
 
+/* The sides of a plane at group q of chunk g: below (*nl0), the references
+ * that start or lie before the plane or start in it; above (*nr0), those
+ * that end or lie after it or end in it; *p_eq lie in it and go to one side
+ * or the other. */
+static inline void group_sides(const sweep_chunk *g, size_t q, uint32_t np_total, uint32_t p_total, uint32_t *nl0,
+                               uint32_t *nr0, uint32_t *p_eq)
+{
+    const uint32_t planars = (uint32_t)(g->counts[q] >> 32), ends = (uint32_t)g->counts[q];
+    const uint32_t p = planars - (uint32_t)(g->counts[q - 1] >> 32), e_eq = ends - (uint32_t)g->counts[q - 1];
+    const uint32_t s_eq = (uint32_t)g->key_events[q] - (uint32_t)g->key_events[q - 1] - e_eq - p;
+    *nl0 = (uint32_t)g->key_events[q - 1] - (uint32_t)g->counts[q - 1] + s_eq;
+    *nr0 = (np_total - ends) + (p_total - planars) + e_eq;
+    *p_eq = p;
+}
+
 /* Sweeps events [begin, end) of the axis's list, which start a group and
  * end one, with `ends0` END and `planars0` PLANAR events before them, into
  * *b: the first plane of the lowest cost below the limit. */
@@ -689,19 +704,13 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
             k += event_key(next) != event_key(e);
             e = next;
         }
-        /* Below: the references that start or lie before the plane; above:
-         * those that end or lie after it; the group's planar ones go to one
-         * side or the other. */
         for (size_t q = 1; q < k; ++q) {
             const uint32_t key = (uint32_t)(g.key_events[q] >> 32);
             const uint32_t bits = (key & 0x80000000u) ? key & 0x7fffffffu : ~key;
             float pos;
             memcpy(&pos, &bits, sizeof pos);
-            const uint32_t p_eq = (uint32_t)(g.counts[q] >> 32) - (uint32_t)(g.counts[q - 1] >> 32);
-            const uint32_t e_eq = (uint32_t)g.counts[q] - (uint32_t)g.counts[q - 1];
-            const uint32_t s_eq = (uint32_t)g.key_events[q] - (uint32_t)g.key_events[q - 1] - e_eq - p_eq;
-            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1] + s_eq;
-            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32)) + e_eq;
+            uint32_t nl0, nr0, p_eq;
+            group_sides(&g, q, np_total, p_total, &nl0, &nr0, &p_eq);
             const float al = face_f + rim_f * (pos - lo_f), ar = face_f + rim_f * (hi_f - pos);
             const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
             const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
@@ -721,11 +730,8 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
         for (size_t q = 1; q < k; ++q) {
             const uint32_t key = (uint32_t)(g.key_events[q] >> 32);
             if (!(key > key_lo && key < key_hi) || (filter && !((double)g.cost[q] <= threshold))) continue;
-            const uint32_t p_eq = (uint32_t)(g.counts[q] >> 32) - (uint32_t)(g.counts[q - 1] >> 32);
-            const uint32_t e_eq = (uint32_t)g.counts[q] - (uint32_t)g.counts[q - 1];
-            const uint32_t s_eq = (uint32_t)g.key_events[q] - (uint32_t)g.key_events[q - 1] - e_eq - p_eq;
-            const uint32_t nl0 = (uint32_t)g.key_events[q - 1] - (uint32_t)g.counts[q - 1] + s_eq;
-            const uint32_t nr0 = (np_total - (uint32_t)g.counts[q]) + (p_total - (uint32_t)(g.counts[q] >> 32)) + e_eq;
+            uint32_t nl0, nr0, p_eq;
+            group_sides(&g, q, np_total, p_total, &nl0, &nr0, &p_eq);
             const float pos = key_float(key);
             const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
             /* The group's planar triangles below first, then above (without
