@@ -5,9 +5,11 @@
 
 #include "as/as.h"
 
+#include <math.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -52,6 +54,24 @@ static inline void as_chunk_range(uint32_t total, unsigned i, unsigned n, uint32
     *first = (uint32_t)((uint64_t)total * i / n);
     *end = (uint32_t)((uint64_t)total * (i + 1) / n);
 }
+
+/* The next float towards -inf / +inf of a float that is not NaN
+ * (nextafterf without the library call, which showed in builders'
+ * profiles): +inf steps down to FLT_MAX, -inf up to -FLT_MAX. */
+static inline float as_float_next_down(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    /* Masks, not branches (the sign is a coin toss where clipping rounds):
+     * a negative float steps away from zero, a zero to -denorm_min. */
+    const uint32_t step = u - 1 + ((u >> 31) << 1);
+    const uint32_t zero = 0u - (uint32_t)((u << 1) == 0), minus_inf = 0u - (uint32_t)(u == 0xff800000u);
+    u = (step & ~(zero | minus_inf)) | (0x80000001u & zero) | (u & minus_inf);
+    memcpy(&f, &u, 4);
+    return f;
+}
+
+static inline float as_float_next_up(float f) { return -as_float_next_down(-f); }
 
 /* Number of worker threads for a request (0: online cores). */
 unsigned as_thread_count(unsigned requested);

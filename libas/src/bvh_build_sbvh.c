@@ -236,33 +236,18 @@ static bvh_ref *leaf_store(sbvh_mem *m, const bvh_ref *refs, uint32_t count)
 
 /* ---- reference clipping */
 
-/* The next float towards -inf / +inf of a finite float (nextafterf without
- * the library call, which showed in profiles). */
-static inline float next_down(float f)
-{
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    if (f == 0.0f) u = 0x80000001u;          /* -denorm_min */
-    else if (f > 0.0f) u -= 1;
-    else u += 1;
-    memcpy(&f, &u, 4);
-    return f;
-}
-
-static inline float next_up(float f) { return -next_down(-f); }
-
 static inline float round_down(double d)
 {
     float f = (float)d;
-    if ((double)f > d) f = next_down(f);
-    return next_down(f);
+    if ((double)f > d) f = as_float_next_down(f);
+    return as_float_next_down(f);
 }
 
 static inline float round_up(double d)
 {
     float f = (float)d;
-    if ((double)f < d) f = next_up(f);
-    return next_up(f);
+    if ((double)f < d) f = as_float_next_up(f);
+    return as_float_next_up(f);
 }
 
 static void grow_point(bvh_box *bx, const float p[3])

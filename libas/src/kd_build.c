@@ -227,96 +227,172 @@ static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, 
     return t;
 }
 
-static float round_down(double x)
+/* Clipping runs once or twice for every reference a split cuts, about a
+ * fifth of a small node's references, and which way each comparison below
+ * goes is a coin toss: it selects through masks rather than branching.
+ * Mispredicted branches were most of its time. */
+static inline double select_double(int c, double a, double b)
 {
-    float f = (float)x;
-    if ((double)f > x) f = nextafterf(f, -INFINITY);
-    return f;
+    uint64_t ua, ub;
+    memcpy(&ua, &a, 8);
+    memcpy(&ub, &b, 8);
+    const uint64_t m = (uint64_t)0 - (uint64_t)(c != 0);
+    ua = (ua & m) | (ub & ~m);
+    memcpy(&a, &ua, 8);
+    return a;
 }
 
-static float round_up(double x)
+static inline float select_float(int c, float a, float b)
 {
-    float f = (float)x;
-    if ((double)f < x) f = nextafterf(f, INFINITY);
-    return f;
+    uint32_t ua, ub;
+    memcpy(&ua, &a, 4);
+    memcpy(&ub, &b, 4);
+    const uint32_t m = 0u - (uint32_t)(c != 0);
+    ua = (ua & m) | (ub & ~m);
+    memcpy(&a, &ua, 4);
+    return a;
 }
 
-/* The box of triangle `id` clipped to `box`, intersected with `old` (which
- * already holds the part inside the parent). */
-static void clip_ref(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
+static inline double min_double(double a, double b) { return a < b ? a : b; }
+static inline double max_double(double a, double b) { return a > b ? a : b; }
+
+/* x rounded down / up to a float, for x not NaN. */
+static inline float round_down(double x)
 {
-    /* Six planes add at most six vertices to the triangle's three; one more
-     * slot repeats the first vertex after the last, so that every edge is
-     * (v[i], v[i + 1]). */
-    double poly[2][10][3], dist[10];
+    const float f = (float)x;
+    return select_float((double)f > x, as_float_next_down(f), f);
+}
+
+static inline float round_up(double x)
+{
+    const float f = (float)x;
+    return select_float((double)f < x, as_float_next_up(f), f);
+}
+
+/* Triangle t clipped to `box` (Sutherland-Hodgman, in double precision, the
+ * planes in order): the polygon's vertices, in one of `poly`'s two
+ * buffers, and their count in *count. Six planes add at most six vertices
+ * to the triangle's three; one more slot repeats the first vertex after the
+ * last, so that every edge is (v[i], v[i + 1]). */
+static const double (*clip_triangle(const as_tri4_t *t, const float box[6], double poly[2][10][3], int *count))[3]
+{
     int cnt = 3, cur = 0;
-    const as_tri4_t *t = &tris[old->id];
     const as_f4_t *const tv[3] = {&t->v0, &t->v1, &t->v2};
     for (int v = 0; v < 3; ++v) {
         poly[0][v][0] = tv[v]->x;
         poly[0][v][1] = tv[v]->y;
         poly[0][v][2] = tv[v]->z;
     }
-    /* A plane that every vertex is inside of cannot cut the polygon. */
-    double tri_lo[3], tri_hi[3];
+    /* Only planes that some vertex is outside of can cut the triangle. */
+    unsigned planes = 0;
     for (int k = 0; k < 3; ++k) {
-        /* Plain comparisons: libm's fmin is a call without -ffinite-math-only. */
         const double p0 = poly[0][0][k], p1 = poly[0][1][k], p2 = poly[0][2][k];
-        const double lo01 = p0 < p1 ? p0 : p1, hi01 = p0 > p1 ? p0 : p1;
-        tri_lo[k] = lo01 < p2 ? lo01 : p2;
-        tri_hi[k] = hi01 > p2 ? hi01 : p2;
+        const double lo = min_double(min_double(p0, p1), p2), hi = max_double(max_double(p0, p1), p2);
+        planes |= (unsigned)(lo < (double)box[k]) << k | (unsigned)(hi > (double)box[k + 3]) << (k + 3);
     }
-    for (int plane = 0; plane < 6 && cnt > 0; ++plane) {
-        const int axis = plane % 3, upper = plane >= 3;
+    while (planes && cnt > 0) {
+        const int plane = __builtin_ctz(planes), axis = plane % 3, upper = plane >= 3;
+        planes &= planes - 1;
         const double bound = box[plane];
-        if (upper ? tri_hi[axis] <= bound : tri_lo[axis] >= bound) continue;
-        double (*const in)[3] = poly[cur], (*const out_poly)[3] = poly[1 - cur];
+        double (*const in)[3] = poly[cur], (*const out)[3] = poly[1 - cur];
+        double dist[10];
         in[cnt][0] = in[0][0];
         in[cnt][1] = in[0][1];
         in[cnt][2] = in[0][2];
         for (int i = 0; i < cnt; ++i) dist[i] = upper ? bound - in[i][axis] : in[i][axis] - bound;
         dist[cnt] = dist[0];
+        /* Every vertex and crossing is written; the count passes the kept
+         * ones. */
         int outc = 0;
         for (int i = 0; i < cnt; ++i) {
             const double *p = in[i], *q = in[i + 1];
             const double dp = dist[i], dq = dist[i + 1];
-            if (dp >= 0) {
-                out_poly[outc][0] = p[0];
-                out_poly[outc][1] = p[1];
-                out_poly[outc][2] = p[2];
-                ++outc;
-            }
-            if ((dp > 0 && dq < 0) || (dp < 0 && dq > 0)) {
-                const double s = dp / (dp - dq);
-                double *r = out_poly[outc++];
-                for (int k = 0; k < 3; ++k) r[k] = p[k] + s * (q[k] - p[k]);
-                r[axis] = bound;
-            }
+            out[outc][0] = p[0];
+            out[outc][1] = p[1];
+            out[outc][2] = p[2];
+            outc += dp >= 0;
+            const double s = dp / (dp - dq);
+            double *r = out[outc];
+            for (int k = 0; k < 3; ++k) r[k] = p[k] + s * (q[k] - p[k]);
+            r[axis] = bound;
+            outc += ((dp > 0) & (dq < 0)) | ((dp < 0) & (dq > 0));
         }
         cnt = outc;
         cur = 1 - cur;
     }
-    float lo[3], hi[3];
+    *count = cnt;
+    return (const double (*)[3])poly[cur];
+}
+
+/* The reference to triangle `old->id` in a node of box `box`: `old`'s box
+ * (which holds the triangle's part inside the parent) within `box`,
+ * narrowed to [dlo, dhi], the bounds of the clipped triangle, rounded out
+ * to floats; `dlo` NULL when clipping left nothing. */
+static void clipped_ref(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
+{
     for (int k = 0; k < 3; ++k) {
-        lo[k] = old->lo[k] > box[k] ? old->lo[k] : box[k];
-        hi[k] = old->hi[k] < box[k + 3] ? old->hi[k] : box[k + 3];
-    }
-    if (cnt > 0) {
-        double dlo[3] = {INFINITY, INFINITY, INFINITY}, dhi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (int i = 0; i < cnt; ++i)
-            for (int k = 0; k < 3; ++k) {
-                if (poly[cur][i][k] < dlo[k]) dlo[k] = poly[cur][i][k];
-                if (poly[cur][i][k] > dhi[k]) dhi[k] = poly[cur][i][k];
-            }
-        for (int k = 0; k < 3; ++k) {
+        float lo = old->lo[k] > box[k] ? old->lo[k] : box[k];
+        float hi = old->hi[k] < box[k + 3] ? old->hi[k] : box[k + 3];
+        if (dlo) {
             const float fl = round_down(dlo[k]), fh = round_up(dhi[k]);
-            if (fl > lo[k] && fl <= hi[k]) lo[k] = fl;
-            if (fh < hi[k] && fh >= lo[k]) hi[k] = fh;
+            lo = select_float((fl > lo) & (fl <= hi), fl, lo);
+            hi = select_float((fh < hi) & (fh >= lo), fh, hi);
         }
+        out->lo[k] = lo;
+        out->hi[k] = hi;
     }
-    memcpy(out->lo, lo, sizeof lo);
-    memcpy(out->hi, hi, sizeof hi);
     out->id = old->id;
+}
+
+/* The box of triangle `old->id` clipped to `box`, intersected with `old`. */
+static void clip_ref(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
+{
+    double poly[2][10][3];
+    int cnt;
+    const double (*v)[3] = clip_triangle(&tris[old->id], box, poly, &cnt);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int i = 0; i < cnt; ++i)
+        for (int k = 0; k < 3; ++k) {
+            lo[k] = min_double(lo[k], v[i][k]);
+            hi[k] = max_double(hi[k], v[i][k]);
+        }
+    clipped_ref(old, box, cnt ? lo : NULL, hi, out);
+}
+
+/* Both children's references of a triangle that crosses the split plane:
+ * the triangle clipped once to the node's box, then that polygon's two
+ * parts on either side of the plane bounded in one pass, the crossing
+ * points shared. Each part is the one clip_ref gives for its child, the
+ * planes taken in another order. */
+static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], const float box[2][6],
+                           int axis, float pos, kd_ref *out[2])
+{
+    double poly[2][10][3];
+    int cnt;
+    const double (*v)[3] = clip_triangle(&tris[old->id], node_box, poly, &cnt);
+    double lo[2][3], hi[2][3];
+    for (int k = 0; k < 3; ++k) lo[0][k] = lo[1][k] = INFINITY, hi[0][k] = hi[1][k] = -INFINITY;
+    int below = 0, above = 0;
+    for (int i = 0; i < cnt; ++i) {
+        const double *p = v[i], *q = v[i + 1 < cnt ? i + 1 : 0];
+        const double dp = p[axis] - pos, dq = q[axis] - pos;
+        const int l = dp <= 0, r = dp >= 0, x = ((dp > 0) & (dq < 0)) | ((dp < 0) & (dq > 0));
+        const double s = dp / (dp - dq);
+        double c[3];
+        for (int k = 0; k < 3; ++k) c[k] = p[k] + s * (q[k] - p[k]);
+        c[axis] = pos;
+        for (int k = 0; k < 3; ++k) {
+            const double cl = select_double(x, c[k], INFINITY), ch = select_double(x, c[k], -INFINITY);
+            lo[0][k] = min_double(lo[0][k], min_double(select_double(l, p[k], INFINITY), cl));
+            hi[0][k] = max_double(hi[0][k], max_double(select_double(l, p[k], -INFINITY), ch));
+            lo[1][k] = min_double(lo[1][k], min_double(select_double(r, p[k], INFINITY), cl));
+            hi[1][k] = max_double(hi[1][k], max_double(select_double(r, p[k], -INFINITY), ch));
+        }
+        below |= l | x;
+        above |= r | x;
+    }
+    clipped_ref(old, box[0], below ? lo[0] : NULL, hi[0], out[0]);
+    clipped_ref(old, box[1], above ? lo[1] : NULL, hi[1], out[1]);
 }
 
 /* A subtree to build: the node's references, the builder's data, its box,
@@ -376,7 +452,7 @@ typedef struct kd_partition {
     uint16_t *side;                /* NULL: not recorded */
     uint32_t n;
     unsigned chunks;
-    float box[2][6];
+    float node_box[6], box[2][6];
     /* partition_count_chunks: each chunk's counts, then where it writes. */
     uint32_t (*chunk_at)[4];
 } kd_partition;
@@ -389,6 +465,18 @@ static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint3
     for (uint32_t i = begin; i < end; ++i) {
         const kd_ref *r = &p->refs[i];
         unsigned keep = 0;
+        if (r->lo[sp->axis] < sp->pos && r->hi[sp->axis] > sp->pos) {
+            kd_ref *out[2] = {&p->out[0][at[0]], &p->out[1][at[1]]};
+            clip_ref_split(p->c->tris, r, p->node_box, p->box, sp->axis, sp->pos, out);
+            for (int s = 0; s < 2; ++s) {
+                if (p->clipped[s]) p->clipped[s][clipped_at[s]] = at[s];
+                ++clipped_at[s];
+                keep |= clipped_keep(r, out[s], s);
+                ++at[s];
+            }
+            if (p->side) p->side[r->id] = (uint16_t)keep;
+            continue;
+        }
         for (int s = 0; s < 2; ++s) {
             if (!(s ? goes_right(r, sp) : goes_left(r, sp))) continue;
             kd_ref *out = &p->out[s][at[s]];
@@ -545,6 +633,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         part.out[0] = lr;
         part.out[1] = rr;
         part.side = hand_down ? sc->side : NULL;
+        memcpy(part.node_box, box, sizeof part.node_box);
         memcpy(part.box[0], lbox, sizeof lbox);
         memcpy(part.box[1], rbox, sizeof rbox);
         if (hand_down) {
