@@ -120,8 +120,9 @@ static void sort_events(uint64_t *ev, uint64_t *tmp, size_t m)
 typedef struct sah_events {
     uint64_t *list[3];
     size_t count[3];
-    uint32_t planar[3]; /* planar events per axis */
-    uint32_t root_n;    /* references at the root */
+    uint32_t n;      /* references in the node: each has one PLANAR event or a START and an END per axis,
+                      * so an axis of m events has 2n - m PLANAR ones */
+    uint32_t root_n; /* references at the root */
 } sah_events;
 
 /* The three axes' work runs on threads of its own in a node that holds
@@ -186,18 +187,16 @@ static sah_events *events_alloc(size_t per_axis)
     for (int a = 0; a < 3; ++a) {
         e->list[a] = base + (size_t)a * (per_axis + 1);
         e->count[a] = 0;
-        e->planar[a] = 0;
     }
     return e;
 }
 
 /* Appends the events of reference `r` (index `index`) on `axis`. */
-static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t index, uint32_t *planar)
+static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t index)
 {
     const float lo = r->lo[axis], hi = r->hi[axis];
     if (lo == hi) {
         out[0] = make_event(lo, EV_PLANAR, index);
-        ++*planar;
         return 1;
     }
     out[0] = make_event(lo, EV_START, index);
@@ -213,14 +212,13 @@ static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t inde
 
 /* Appends the events of clipped reference `r` on `axis` that child `s`
  * does not keep from its parent (keep: its side[] bits). */
-static size_t put_fresh_events(uint64_t *out, const kd_ref *r, int axis, unsigned keep, int s, uint32_t *planar)
+static size_t put_fresh_events(uint64_t *out, const kd_ref *r, int axis, unsigned keep, int s)
 {
     const float lo = r->lo[axis], hi = r->hi[axis];
     const int keep_lo = (keep & KD_KEEP_BIT(s, axis, 0)) != 0, keep_hi = (keep & KD_KEEP_BIT(s, axis, 1)) != 0;
     if (lo == hi) {
         if (keep_lo) return 0;
         out[0] = make_event(lo, EV_PLANAR, r->id);
-        ++*planar;
         return 1;
     }
     size_t k = 0;
@@ -241,7 +239,6 @@ typedef struct root_job {
     uint32_t n;
     sah_events *e;                       /* per axis: both halves' sorted events, each ending in a sentinel */
     size_t run_count[3][ROOT_HALVES];
-    uint32_t planar[3][ROOT_HALVES];
     atomic_int failed;
 } root_job;
 
@@ -274,13 +271,11 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
             return;
         }
         size_t m = 0;
-        uint32_t planar = 0;
-        for (uint32_t k = first; k < end; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id, &planar);
+        for (uint32_t k = first; k < end; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id);
         sort_events(out, tmp, m);
         free(tmp);
         out[m] = UINT64_MAX;
         r->run_count[a][h] = m;
-        r->planar[a][h] = planar;
     }
 }
 
@@ -299,7 +294,6 @@ static void root_merge_axis(void *user, int a)
     free(out);
     r->e->list[a][m] = UINT64_MAX;
     r->e->count[a] = m;
-    r->e->planar[a] = r->planar[a][0] + r->planar[a][1];
 }
 
 static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
@@ -310,6 +304,7 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
     sah_events *e = events_alloc(per_axis);
     if (!e) return NULL;
     e->root_n = n;
+    e->n = n;
     root_job r;
     memset(&r, 0, sizeof r);
     r.refs = refs;
@@ -346,13 +341,12 @@ static void child_axis_events(void *user, int a)
     const kd_scratch *how = cj->how;
     sah_events *const *e = cj->e;
     uint64_t *fresh[2], *const tmp = cj->fresh[a] + 2 * ((size_t)how->clipped_n[0] + how->clipped_n[1]) + 2;
-    uint32_t planar[2] = {0, 0};
     fresh[0] = cj->fresh[a];
     for (int side = 0; side < 2; ++side) {
         size_t nf = 0;
         for (uint32_t k = 0; k < how->clipped_n[side]; ++k) {
             const kd_ref *r = &cj->child_refs[side][how->clipped[side][k]];
-            nf += put_fresh_events(fresh[side] + nf, r, a, how->side[r->id], side, &planar[side]);
+            nf += put_fresh_events(fresh[side] + nf, r, a, how->side[r->id], side);
         }
         sort_events(fresh[side], tmp, nf);
         fresh[side][nf] = UINT64_MAX;
@@ -366,18 +360,15 @@ static void child_axis_events(void *user, int a)
     const size_t m = cj->parent->count[a];
     for (size_t k = 0; k < m; ++k) {
         const uint64_t ev = src[k];
-        const unsigned f = keep[event_index(ev)];
+        /* Both children's bits for this axis and bound: one shift. */
+        const unsigned f = (unsigned)keep[event_index(ev)] >> (a * 2 + (event_kind(ev) == EV_END));
         while (*f0 < ev) o0[n0++] = *f0++;
         while (*f1 < ev) o1[n1++] = *f1++;
         /* Written always, kept by advancing: no branch on the side. */
         o0[n0] = ev;
         o1[n1] = ev;
-        const unsigned k0 = keeps_event(f, 0, a, ev), k1 = keeps_event(f, 1, a, ev);
-        const unsigned is_planar = event_kind(ev) == EV_PLANAR;
-        n0 += k0;
-        n1 += k1;
-        planar[0] += k0 & is_planar;
-        planar[1] += k1 & is_planar;
+        n0 += f & 1u;
+        n1 += (f >> 6) & 1u;
     }
     while (*f0 != UINT64_MAX) o0[n0++] = *f0++;
     while (*f1 != UINT64_MAX) o1[n1++] = *f1++;
@@ -385,8 +376,6 @@ static void child_axis_events(void *user, int a)
     e[1]->count[a] = n1;
     o0[n0] = UINT64_MAX;
     o1[n1] = UINT64_MAX;
-    e[0]->planar[a] = planar[0];
-    e[1]->planar[a] = planar[1];
 }
 
 /* A big node's children's lists on many threads: the clipped references'
@@ -401,11 +390,9 @@ typedef struct child_pieces {
     unsigned per_axis;
     uint64_t *fresh[3][2], *tmp[3][2]; /* sorted, ending in a sentinel; the sorts' scratch */
     size_t fresh_n[3][2];
-    uint32_t fresh_planar[3][2];
     size_t begin[3][PIECES_MAX + 1];          /* the pieces of the parent's list */
     size_t cut[3][2][PIECES_MAX + 1];         /* the pieces of the fresh lists */
     size_t at[3][2][PIECES_MAX + 1];          /* kept counts, then where each piece writes */
-    uint32_t planar[3][2][PIECES_MAX];
 } child_pieces;
 
 static void child_fresh_sort(void *user, unsigned i, unsigned n)
@@ -416,15 +403,13 @@ static void child_fresh_sort(void *user, unsigned i, unsigned n)
         const int a = (int)(job % 3), side = (int)(job / 3);
         uint64_t *out = cp->fresh[a][side];
         size_t nf = 0;
-        uint32_t planar = 0;
         for (uint32_t k = 0; k < how->clipped_n[side]; ++k) {
             const kd_ref *r = &cp->cj->child_refs[side][how->clipped[side][k]];
-            nf += put_fresh_events(out + nf, r, a, how->side[r->id], side, &planar);
+            nf += put_fresh_events(out + nf, r, a, how->side[r->id], side);
         }
         sort_events(out, cp->tmp[a][side], nf);
         out[nf] = UINT64_MAX;
         cp->fresh_n[a][side] = nf;
-        cp->fresh_planar[a][side] = planar;
     }
 }
 
@@ -449,19 +434,13 @@ static void child_piece_count(void *user, unsigned i, unsigned n)
         const unsigned piece = job / 3;
         const uint64_t *src = cp->cj->parent->list[a];
         size_t k0 = 0, k1 = 0;
-        uint32_t p0 = 0, p1 = 0;
         for (size_t k = cp->begin[a][piece]; k < cp->begin[a][piece + 1]; ++k) {
-            const unsigned f = keep[event_index(src[k])], is_planar = event_kind(src[k]) == EV_PLANAR;
-            const unsigned l = keeps_event(f, 0, a, src[k]), r = keeps_event(f, 1, a, src[k]);
-            k0 += l;
-            k1 += r;
-            p0 += l & is_planar;
-            p1 += r & is_planar;
+            const unsigned f = keep[event_index(src[k])];
+            k0 += keeps_event(f, 0, a, src[k]);
+            k1 += keeps_event(f, 1, a, src[k]);
         }
         cp->at[a][0][piece] = k0;
         cp->at[a][1][piece] = k1;
-        cp->planar[a][0][piece] = p0;
-        cp->planar[a][1][piece] = p1;
     }
 }
 
@@ -532,16 +511,13 @@ static int child_events_in_pieces(child_job *cj, kd_scratch *how, unsigned threa
     for (int a = 0; a < 3; ++a)
         for (int side = 0; side < 2; ++side) {
             size_t at = 0;
-            uint32_t planar = cp->fresh_planar[a][side];
             for (unsigned piece = 0; piece < per_axis; ++piece) {
                 const size_t kept = cp->at[a][side][piece];
                 cp->at[a][side][piece] = at;
                 at += kept + cp->cut[a][side][piece + 1] - cp->cut[a][side][piece];
-                planar += cp->planar[a][side][piece];
             }
             cp->at[a][side][per_axis] = at;
             cj->e[side]->count[a] = at;
-            cj->e[side]->planar[a] = planar;
         }
     as_parallel_run(threads, child_piece_merge, cp);
     for (int a = 0; a < 3; ++a)
@@ -565,6 +541,8 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratc
     cj.e[1] = events_alloc(2 * (size_t)child_n[1]);
     if (!cj.e[0] || !cj.e[1]) goto fail;
     cj.e[0]->root_n = cj.e[1]->root_n = p->root_n;
+    cj.e[0]->n = child_n[0];
+    cj.e[1]->n = child_n[1];
     const unsigned pieces = pieces_per_axis(c, p, parent_n);
     if (pieces > 1) {
         if (!child_events_in_pieces(&cj, how, as_thread_count(c->args->thread_count), pieces)) goto fail;
@@ -665,7 +643,7 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
     const double ct = cj->ct, ci = cj->ci, area = cj->area;
     const uint64_t *ev = cj->e->list[axis];
     const size_t m = cj->e->count[axis];
-    const uint32_t p_total = cj->e->planar[axis], np_total = (uint32_t)((m - p_total) / 2);
+    const uint32_t p_total = (uint32_t)(2 * (size_t)cj->e->n - m), np_total = (uint32_t)(m - cj->e->n);
     /* A side's half area is linear in the plane's position: the face across
      * the axis plus the perimeter of that face times the side's length
      * along it. */
