@@ -1,5 +1,6 @@
 /* What the KD builders and layouts promise: byte-identical files whatever
- * the thread count, cancellation, sane trees on degenerate inputs (copies of
+ * the thread count, each recording the SAH cost its nodes give,
+ * cancellation, sane trees on degenerate inputs (copies of
  * one triangle, a flat scene, quads lying on split planes), validation that
  * rejects damaged trees and ropes, and conversion kd-standard <-> kd-ropes
  * that keeps the tree bytes and round-trips to the same file.
@@ -62,6 +63,14 @@ static void build_is_byte_identical_for_1_2_3_7_16_threads(void)
             as_build_args_t a = kd_args(layouts[l]);
             a.thread_count = threads;
             as_structure_t *s = as_structure_build(m, &a);
+            /* The SAH cost the builder records (summed while writing the
+             * tree) is the one its nodes give when computed again. */
+            as_structure_stats_t st;
+            CHECK_EQ_INT(as_structure_get_stats(s, &st), AS_OK);
+            if (st.sah_cost != s->meta.sah_cost)
+                fprintf(stderr, "  %u threads: SAH cost %.17g recorded, %.17g from the nodes\n", threads, s->meta.sah_cost,
+                        st.sah_cost);
+            CHECK(st.sah_cost == s->meta.sah_cost);
             char path[512];
             snprintf(path, sizeof path, "%s/threads%u.asf", tmpdir, threads);
             save(s, path);

@@ -202,10 +202,15 @@ static void free_state(const kd_run *run, void *state)
 
 static kd_ref *refs_alloc(uint32_t n) { return malloc(sizeof(kd_ref) * (n ? n : 1)); }
 
-static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, void *state, double weight)
+static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, void *state, uint32_t depth,
+                         double weight)
 {
     free_state(run, state);
     kd_tmp *t = new_tmp(run, sc);
+    sc->leaves++;
+    sc->refs += n;
+    sc->empty += n == 0;
+    if (depth > sc->max_depth) sc->max_depth = depth;
     if (t && n) {
         t->ids = arena_alloc(sc, sizeof(uint32_t) * n);
         if (!t->ids) {
@@ -588,7 +593,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         if (atomic_load(&run->cancelled) || atomic_load(&run->oom) || n == 0 || t.depth >= c->max_depth ||
             !ops->choose(c, t.state, refs, n, box, t.depth, &sp) ||
             !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3])) {
-            *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.state, t.depth, t.weight);
             return;
         }
         /* Where the references go, counted once: a big node's chunks are
@@ -611,7 +616,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         }
         if ((nl == n && nr == n) || (double)nl + (double)nr > t.share) {
             free(chunk_at);
-            *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.state, t.depth, t.weight);
             return;
         }
         kd_ref *lr = refs_alloc(nl), *rr = refs_alloc(nr);
@@ -622,7 +627,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             free(lr);
             free(rr);
             atomic_store(&run->oom, 1);
-            *t.slot = make_leaf(run, sc, refs, n, t.state, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.state, t.depth, t.weight);
             return;
         }
         float lbox[6], rbox[6];
@@ -660,6 +665,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         node->axis = sp.axis;
         node->pos = sp.pos;
         *t.slot = node;
+        sc->inner++;
         const double fl = (double)nl / ((double)nl + (double)nr);
         kd_task lt = {lr, nl, child_state[0], {0}, t.depth + 1, t.share * fl, t.weight * fl, &node->child[0]};
         kd_task rt = {rr, nr, child_state[1], {0}, t.depth + 1, t.share * (1.0 - fl), t.weight * (1.0 - fl),
@@ -696,32 +702,29 @@ typedef struct kd_counts {
     uint32_t max_depth;
 } kd_counts;
 
-static void count_tmp(const kd_tmp *t, uint32_t depth, kd_counts *k)
-{
-    k->nodes++;
-    if (t->child[0]) {
-        k->inner++;
-        count_tmp(t->child[0], depth + 1, k);
-        count_tmp(t->child[1], depth + 1, k);
-        return;
-    }
-    k->leaves++;
-    k->refs += t->count;
-    if (t->count == 0) k->empty++;
-    if (depth > k->max_depth) k->max_depth = depth;
-}
-
 typedef struct kd_emit {
     as_kd_node_t *nodes;
     uint32_t *prim;
     uint64_t node_next, prim_next;
     uint32_t leaf_next;
+    double ct, ci, root_area, sah; /* the SAH cost, summed as as_kd_sah_cost sums it */
 } kd_emit;
 
-static void emit(const kd_tmp *t, kd_emit *e)
+static double box_half_area(const float b[6])
+{
+    const double dx = (double)b[3] - b[0], dy = (double)b[4] - b[1], dz = (double)b[5] - b[2];
+    return dx * dy + dy * dz + dz * dx;
+}
+
+/* Writes the subtree of t (box `box`) in preorder, the left child first, and
+ * adds its SAH cost in that order: the sum as_kd_sah_cost makes from the
+ * written tree, bit for bit, without walking it again. */
+static void emit(const kd_tmp *t, const float box[6], kd_emit *e)
 {
     const uint64_t me = e->node_next++;
+    const double ratio = e->root_area > 0 ? box_half_area(box) / e->root_area : 1.0;
     if (!t->child[0]) {
+        e->sah += e->ci * t->count * ratio;
         e->nodes[me].word0 = (uint32_t)e->prim_next;
         e->nodes[me].word1 = (e->leaf_next++ << 2) | AS_KD_LEAF_TAG;
         e->prim[e->prim_next++] = t->count;
@@ -729,10 +732,16 @@ static void emit(const kd_tmp *t, kd_emit *e)
         e->prim_next += t->count;
         return;
     }
-    emit(t->child[0], e);
+    e->sah += e->ct * ratio;
+    float child_box[6];
+    memcpy(child_box, box, sizeof child_box);
+    child_box[t->axis + 3] = t->pos;
+    emit(t->child[0], child_box, e);
     e->nodes[me].word0 = as_float_as_uint(t->pos);
     e->nodes[me].word1 = ((uint32_t)e->node_next << 2) | (uint32_t)t->axis;
-    emit(t->child[1], e);
+    child_box[t->axis + 3] = box[t->axis + 3];
+    child_box[t->axis] = t->pos;
+    emit(t->child[1], child_box, e);
 }
 
 #define KD_INIT_CHUNKS 256
@@ -850,7 +859,14 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     }
     kd_counts kc;
     memset(&kc, 0, sizeof kc);
-    count_tmp(root, 0, &kc);
+    for (const kd_scratch *sc = run.free_scratch; sc; sc = sc->next_free) {
+        kc.inner += sc->inner;
+        kc.leaves += sc->leaves;
+        kc.empty += sc->empty;
+        kc.refs += sc->refs;
+        if (sc->max_depth > kc.max_depth) kc.max_depth = sc->max_depth;
+    }
+    kc.nodes = kc.inner + kc.leaves;
     if (kc.nodes >= (1u << 30) || kc.leaves + kc.refs >= UINT32_MAX) {
         scratch_free_all(&run);
         free(tris);
@@ -865,8 +881,8 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
         scratch_free_all(&run);
         return as_get_error();
     }
-    kd_emit e = {nodes, prim, 0, 0, 0};
-    emit(root, &e);
+    kd_emit e = {nodes, prim, 0, 0, 0, args->cost_traversal, args->cost_intersection, box_half_area(box), 0.0};
+    emit(root, box, &e);
     scratch_free_all(&run);
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_KD, AS_LAYOUT_KD_STANDARD, AS_KD_LAYOUT_VERSION, ops->builder);
@@ -883,7 +899,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     as_structure_add_section(s, ASF_TAG_KDN8, nodes, kc.nodes, sizeof(as_kd_node_t));
     as_structure_add_section(s, ASF_TAG_PRIM, prim, kc.leaves + kc.refs, sizeof(uint32_t));
     as_spatial_add_tris(s, tris, mesh->triangle_count);
-    s->meta.sah_cost = as_kd_sah_cost(s);
+    s->meta.sah_cost = e.sah;
     if (args->layout == AS_LAYOUT_KD_ROPES) {
         const as_error_t err = as_kd_add_ropes(s);
         if (err != AS_OK) return err;

@@ -65,6 +65,10 @@ typedef struct kd_scratch {
     size_t buf_size;
     struct kd_scratch *next_free;
     struct kd_arena_chunk *arena; /* the driver's: the tree's nodes and leaf lists */
+    /* The driver's count of the nodes this thread made, summed after the
+     * build to size the tree's sections without another walk. */
+    uint64_t inner, leaves, empty, refs;
+    uint32_t max_depth;
 } kd_scratch;
 
 /* buf with room for `bytes` (its contents are not kept); NULL when out of
