@@ -358,20 +358,36 @@ static void child_axis_events(void *user, int a)
     size_t n0 = 0, n1 = 0;
     const uint64_t *src = cj->parent->list[a];
     const size_t m = cj->parent->count[a];
+    /* The next fresh events live in registers: the compiler must assume
+     * the children's stores can change the fresh lists, and would load
+     * them again after every event. */
+    uint64_t y0 = *f0, y1 = *f1;
     for (size_t k = 0; k < m; ++k) {
         const uint64_t ev = src[k];
         /* Both children's bits for this axis and bound: one shift. */
         const unsigned f = (unsigned)keep[event_index(ev)] >> (a * 2 + (event_kind(ev) == EV_END));
-        while (*f0 < ev) o0[n0++] = *f0++;
-        while (*f1 < ev) o1[n1++] = *f1++;
+        while (y0 < ev) {
+            o0[n0++] = y0;
+            y0 = *++f0;
+        }
+        while (y1 < ev) {
+            o1[n1++] = y1;
+            y1 = *++f1;
+        }
         /* Written always, kept by advancing: no branch on the side. */
         o0[n0] = ev;
         o1[n1] = ev;
         n0 += f & 1u;
         n1 += (f >> 6) & 1u;
     }
-    while (*f0 != UINT64_MAX) o0[n0++] = *f0++;
-    while (*f1 != UINT64_MAX) o1[n1++] = *f1++;
+    while (y0 != UINT64_MAX) {
+        o0[n0++] = y0;
+        y0 = *++f0;
+    }
+    while (y1 != UINT64_MAX) {
+        o1[n1++] = y1;
+        y1 = *++f1;
+    }
     e[0]->count[a] = n0;
     e[1]->count[a] = n1;
     o0[n0] = UINT64_MAX;
