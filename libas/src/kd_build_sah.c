@@ -475,11 +475,21 @@ static void child_piece_merge(void *user, unsigned i, unsigned n)
         const uint64_t *const f1_end = cp->fresh[a][1] + cp->cut[a][1][piece + 1];
         /* Written only when kept: another piece writes right after this
          * one's last event. */
+        /* The next fresh events in registers, as in child_axis_events (a
+         * piece's end is inside a list that ends in a sentinel, so reading
+         * one past it is safe). */
+        uint64_t y0 = *f0, y1 = *f1;
         for (size_t k = cp->begin[a][piece]; k < cp->begin[a][piece + 1]; ++k) {
             const uint64_t ev = src[k];
             const unsigned f = keep[event_index(ev)];
-            while (f0 < f0_end && *f0 < ev) o0[n0++] = *f0++;
-            while (f1 < f1_end && *f1 < ev) o1[n1++] = *f1++;
+            while (f0 < f0_end && y0 < ev) {
+                o0[n0++] = y0;
+                y0 = *++f0;
+            }
+            while (f1 < f1_end && y1 < ev) {
+                o1[n1++] = y1;
+                y1 = *++f1;
+            }
             if (keeps_event(f, 0, a, ev)) o0[n0++] = ev;
             if (keeps_event(f, 1, a, ev)) o1[n1++] = ev;
         }
