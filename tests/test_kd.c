@@ -10,6 +10,7 @@
 #include "test_util.h"
 #include "structure.h"
 #include "kd_layout.h"
+#include "kd_build.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -477,6 +478,68 @@ static void a_scene_thinner_than_floats_resolve_still_splits_where_it_pays(void)
     as_mesh_release(m);
 }
 
+/* A bound for clipping's rounding: exactly a float, a float nudged by less
+ * than its spacing either way (the conversion rounds the wrong way half the
+ * time), a signed zero, a subnormal, a double too small for any float (it
+ * rounds to a zero, then steps off it), or beyond the float range. */
+static double clip_bound(uint64_t *st)
+{
+    const double u = ref_rand01(st), v = ref_rand01(st) * 2.0 - 1.0;
+    const float f = (float)(v * (u < 0.5 ? 10.0 : 1e-3));
+    const int kind = (int)(ref_rand01(st) * 9.0);
+    switch (kind) {
+    case 0: return f;
+    case 1: return (double)f + (double)f * 1e-9;
+    case 2: return (double)f - (double)f * 1e-9;
+    case 3: return ref_rand01(st) < 0.5 ? 0.0 : -0.0;
+    case 4: return v * 1e-40;
+    case 5: return v * 1e39;
+    case 6: return v * 1e-50;
+    default: return v * 4.0;
+    }
+}
+
+static float clip_coord(uint64_t *st)
+{
+    const double r = ref_rand01(st);
+    if (r < 0.1) return ref_rand01(st) < 0.5 ? 0.0f : -0.0f;
+    if (r < 0.15) return ref_rand01(st) < 0.5 ? INFINITY : -INFINITY;
+    return (float)(ref_rand01(st) * 8.0 - 4.0);
+}
+
+/* The clipped reference's box comes from one of two forms of one function:
+ * four lanes at once where the compiler targets SSE2, plain C elsewhere.
+ * Both must give the same bits, or a tree would depend on the machine. */
+static void clipped_reference_forms_agree_bit_for_bit(void)
+{
+#if defined(__SSE2__)
+    uint64_t st = 99;
+    int differ = 0;
+    for (int i = 0; i < 200000; ++i) {
+        kd_ref old;
+        float box[6];
+        double lo[3], hi[3];
+        for (int k = 0; k < 3; ++k) {
+            old.lo[k] = clip_coord(&st);
+            old.hi[k] = ref_rand01(&st) < 0.2 ? old.lo[k] : clip_coord(&st);
+            box[k] = clip_coord(&st);
+            box[k + 3] = ref_rand01(&st) < 0.2 ? box[k] : clip_coord(&st);
+            lo[k] = clip_bound(&st);
+            hi[k] = ref_rand01(&st) < 0.2 ? lo[k] : clip_bound(&st);
+        }
+        old.id = (uint32_t)i;
+        const int empty = ref_rand01(&st) < 0.05;
+        kd_ref a, b;
+        kd_clipped_ref_plain(&old, box, empty ? NULL : lo, hi, &a);
+        kd_clipped_ref_sse2(&old, box, empty ? NULL : lo, hi, &b);
+        if (memcmp(&a, &b, sizeof a) != 0 && differ++ < 3)
+            fprintf(stderr, "  case %d: plain (%a %a %a)-(%a %a %a), sse2 (%a %a %a)-(%a %a %a)\n", i, a.lo[0], a.lo[1],
+                    a.lo[2], a.hi[0], a.hi[1], a.hi[2], b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1], b.hi[2]);
+    }
+    CHECK_EQ_INT(differ, 0);
+#endif
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2) { fprintf(stderr, "usage: %s midcut|sah\n", argv[0]); return 2; }
@@ -495,6 +558,7 @@ int main(int argc, char **argv)
     RUN_TEST(depth_cap_and_split_budget_are_respected);
     RUN_TEST(a_single_triangle_and_an_all_degenerate_mesh_build_and_trace);
     RUN_TEST(a_scene_thinner_than_floats_resolve_still_splits_where_it_pays);
+    RUN_TEST(clipped_reference_forms_agree_bit_for_bit);
     rmdir(tmpdir);
     TEST_EXIT();
 }

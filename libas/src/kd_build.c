@@ -31,6 +31,9 @@
 #include "spatial_common.h"
 #include "task_pool.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <float.h>
 #include <math.h>
 #include <pthread.h>
@@ -329,11 +332,7 @@ static const double (*clip_triangle(const as_tri4_t *t, const float box[6], doub
     return (const double (*)[3])poly[cur];
 }
 
-/* The reference to triangle `old->id` in a node of box `box`: `old`'s box
- * (which holds the triangle's part inside the parent) within `box`,
- * narrowed to [dlo, dhi], the bounds of the clipped triangle, rounded out
- * to floats; `dlo` NULL when clipping left nothing. */
-static void clipped_ref(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
+void kd_clipped_ref_plain(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
 {
     for (int k = 0; k < 3; ++k) {
         float lo = old->lo[k] > box[k] ? old->lo[k] : box[k];
@@ -347,6 +346,85 @@ static void clipped_ref(const kd_ref *old, const float box[6], const double *dlo
         out->hi[k] = hi;
     }
     out->id = old->id;
+}
+
+#if defined(__SSE2__)
+/* The plain form's steps, the three axes in the lanes of one vector (the
+ * fourth lane is zero and unused): a third of its time, which was a fifth
+ * of clipping's. */
+static inline __m128 load3_zero_lanes(__m128 v) { return _mm_and_ps(v, _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1))); }
+
+/* x, y, z from p (which has a fourth float after them, inside its struct),
+ * and a zero. */
+static inline __m128 load3_zero(const float *p) { return load3_zero_lanes(_mm_loadu_ps(p)); }
+
+/* d[0..2] converted to floats, and the lanes where the float is above
+ * (*above) or below (*below) the double it came from. */
+static inline __m128 floats_of(const double *d, __m128 *above, __m128 *below)
+{
+    const __m128d d01 = _mm_loadu_pd(d), d2 = _mm_load_sd(d + 2);
+    const __m128 f01 = _mm_cvtpd_ps(d01), f2 = _mm_cvtpd_ps(d2);
+    const __m128d b01 = _mm_cvtps_pd(f01), b2 = _mm_cvtps_pd(f2);
+    /* The 64-bit masks' low halves make the 32-bit lanes. */
+    *above = _mm_shuffle_ps(_mm_castpd_ps(_mm_cmpgt_pd(b01, d01)), _mm_castpd_ps(_mm_cmpgt_sd(b2, d2)),
+                            _MM_SHUFFLE(2, 0, 2, 0));
+    *below = _mm_shuffle_ps(_mm_castpd_ps(_mm_cmplt_pd(b01, d01)), _mm_castpd_ps(_mm_cmplt_sd(b2, d2)),
+                            _MM_SHUFFLE(2, 0, 2, 0));
+    return _mm_movelh_ps(f01, f2);
+}
+
+/* as_float_next_down in every lane. */
+static inline __m128 next_down4(__m128 f)
+{
+    const __m128i u = _mm_castps_si128(f);
+    const __m128i step = _mm_add_epi32(_mm_sub_epi32(u, _mm_set1_epi32(1)), _mm_slli_epi32(_mm_srli_epi32(u, 31), 1));
+    const __m128i zero = _mm_cmpeq_epi32(_mm_slli_epi32(u, 1), _mm_setzero_si128());
+    const __m128i minus_inf = _mm_cmpeq_epi32(u, _mm_set1_epi32((int)0xff800000u));
+    __m128i r = _mm_andnot_si128(_mm_or_si128(zero, minus_inf), step);
+    r = _mm_or_si128(r, _mm_and_si128(zero, _mm_set1_epi32((int)0x80000001u)));
+    r = _mm_or_si128(r, _mm_and_si128(minus_inf, u));
+    return _mm_castsi128_ps(r);
+}
+
+static inline __m128 next_up4(__m128 f)
+{
+    const __m128 sign = _mm_castsi128_ps(_mm_set1_epi32((int)0x80000000u));
+    return _mm_xor_ps(next_down4(_mm_xor_ps(f, sign)), sign);
+}
+
+static inline __m128 select4(__m128 m, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b)); }
+
+void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
+{
+    __m128 lo = _mm_max_ps(load3_zero(old->lo), load3_zero(box));
+    /* box[3..5] from the four floats ending there: box has six. */
+    const __m128 box_hi = _mm_loadu_ps(box + 2);
+    __m128 hi = _mm_min_ps(load3_zero(old->hi), load3_zero_lanes(_mm_shuffle_ps(box_hi, box_hi, _MM_SHUFFLE(3, 3, 2, 1))));
+    if (dlo) {
+        __m128 above, below;
+        const __m128 f = floats_of(dlo, &above, &below);
+        const __m128 fl = select4(above, next_down4(f), f);
+        const __m128 g = floats_of(dhi, &above, &below);
+        const __m128 fh = select4(below, next_up4(g), g);
+        lo = select4(_mm_and_ps(_mm_cmpgt_ps(fl, lo), _mm_cmple_ps(fl, hi)), fl, lo);
+        hi = select4(_mm_and_ps(_mm_cmplt_ps(fh, hi), _mm_cmpge_ps(fh, lo)), fh, hi);
+    }
+    float l[4], h[4];
+    _mm_storeu_ps(l, lo);
+    _mm_storeu_ps(h, hi);
+    memcpy(out->lo, l, sizeof out->lo);
+    memcpy(out->hi, h, sizeof out->hi);
+    out->id = old->id;
+}
+#endif
+
+static inline void clipped_ref(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
+{
+#if defined(__SSE2__)
+    kd_clipped_ref_sse2(old, box, dlo, dhi, out);
+#else
+    kd_clipped_ref_plain(old, box, dlo, dhi, out);
+#endif
 }
 
 /* The box of triangle `old->id` clipped to `box`, intersected with `old`. */

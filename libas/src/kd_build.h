@@ -101,6 +101,16 @@ typedef struct kd_ctx {
     const as_tri4_t *tris;
 } kd_ctx;
 
+/* The box of a reference after clipping (kd_build.c): `old`'s box within
+ * `box`, narrowed to [dlo, dhi], the bounds of the clipped triangle, rounded
+ * out to floats; dlo NULL when clipping left nothing. The SSE2 form is the
+ * one that runs where the compiler targets SSE2 (every x86-64), the plain
+ * one elsewhere; they give the same bits (test_kd holds them to it). */
+void kd_clipped_ref_plain(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out);
+#if defined(__SSE2__)
+void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out);
+#endif
+
 /* Builds the tree with `ops` and fills s (META and the KD-standard
  * sections, then the ropes when args->layout asks for them). */
 as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd_builder_ops *ops, as_structure_t *s);
