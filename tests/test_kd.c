@@ -3,7 +3,8 @@
  * cancellation, sane trees on degenerate inputs (copies of
  * one triangle, a flat scene, quads lying on split planes), validation that
  * rejects damaged trees and ropes, and conversion kd-standard <-> kd-ropes
- * that keeps the tree bytes and round-trips to the same file.
+ * that keeps the tree bytes and round-trips to the same file; clipping's two
+ * forms equal bit for bit, and no division-by-zero or invalid flag raised.
  *
  *   test_kd BUILDER        (midcut | sah) */
 #include "reference.h"
@@ -12,6 +13,7 @@
 #include "kd_layout.h"
 #include "kd_build.h"
 
+#include <fenv.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -64,6 +66,8 @@ static void build_is_byte_identical_for_1_2_3_7_16_threads(void)
             as_build_args_t a = kd_args(layouts[l]);
             a.thread_count = threads;
             as_structure_t *s = as_structure_build(m, &a);
+            CHECK(s != NULL);
+            if (!s) continue;
             /* The SAH cost the builder records (summed while writing the
              * tree) is the one its nodes give when computed again. */
             as_structure_stats_t st;
@@ -540,6 +544,37 @@ static void clipped_reference_forms_agree_bit_for_bit(void)
 #endif
 }
 
+/* Clipping divides only where an edge crosses a plane: a build leaves the
+ * caller's floating-point flags for division by zero and invalid operations
+ * as they were (a host that traps them would stop). Axis-aligned triangles
+ * have edges parallel to most split planes. */
+static void a_build_raises_no_division_by_zero_or_invalid_flag(void)
+{
+    const uint32_t n = 3000;
+    float *p = malloc(sizeof(float) * 9 * n);
+    uint64_t st = 31;
+    for (uint32_t t = 0; t < n; ++t) {
+        const int axis = (int)(t % 3), u = (axis + 1) % 3, v = (axis + 2) % 3;
+        float c[3];
+        for (int k = 0; k < 3; ++k) c[k] = (float)ref_rand01(&st);
+        const float du = 0.05f * (float)ref_rand01(&st) + 0.01f, dv = 0.05f * (float)ref_rand01(&st) + 0.01f;
+        for (int k = 0; k < 9; ++k) p[9 * t + k] = c[k % 3];
+        p[9 * t + 3 + u] += du;
+        p[9 * t + 6 + v] += dv;
+    }
+    as_mesh_t *m = test_mesh_from_soup(p, n);
+    as_build_args_t a = kd_args(AS_LAYOUT_KD_STANDARD);
+    a.thread_count = 1;
+    feclearexcept(FE_ALL_EXCEPT);
+    as_structure_t *s = as_structure_build(m, &a);
+    const int raised = fetestexcept(FE_DIVBYZERO | FE_INVALID);
+    CHECK(s != NULL);
+    if (raised) fprintf(stderr, "  raised:%s%s\n", raised & FE_DIVBYZERO ? " division by zero" : "", raised & FE_INVALID ? " invalid" : "");
+    CHECK_EQ_INT(raised, 0);
+    as_structure_release(s);
+    as_mesh_release(m);
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2) { fprintf(stderr, "usage: %s midcut|sah\n", argv[0]); return 2; }
@@ -559,6 +594,7 @@ int main(int argc, char **argv)
     RUN_TEST(a_single_triangle_and_an_all_degenerate_mesh_build_and_trace);
     RUN_TEST(a_scene_thinner_than_floats_resolve_still_splits_where_it_pays);
     RUN_TEST(clipped_reference_forms_agree_bit_for_bit);
+    RUN_TEST(a_build_raises_no_division_by_zero_or_invalid_flag);
     rmdir(tmpdir);
     TEST_EXIT();
 }

@@ -319,11 +319,15 @@ static const double (*clip_triangle(const as_tri4_t *t, const float box[6], doub
             out[outc][1] = p[1];
             out[outc][2] = p[2];
             outc += dp >= 0;
-            const double s = dp / (dp - dq);
+            /* Divided by the difference only where the edge crosses (it is
+             * nonzero there): an edge parallel to the plane would divide by
+             * zero and leave the caller's floating-point flags raised. */
+            const int cross = ((dp > 0) & (dq < 0)) | ((dp < 0) & (dq > 0));
+            const double s = dp / select_double(cross, dp - dq, 1.0);
             double *r = out[outc];
             for (int k = 0; k < 3; ++k) r[k] = p[k] + s * (q[k] - p[k]);
             r[axis] = bound;
-            outc += ((dp > 0) & (dq < 0)) | ((dp < 0) & (dq > 0));
+            outc += cross;
         }
         cnt = outc;
         cur = 1 - cur;
@@ -460,7 +464,7 @@ static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float
         const double *p = v[i], *q = v[i + 1 < cnt ? i + 1 : 0];
         const double dp = p[axis] - pos, dq = q[axis] - pos;
         const int l = dp <= 0, r = dp >= 0, x = ((dp > 0) & (dq < 0)) | ((dp < 0) & (dq > 0));
-        const double s = dp / (dp - dq);
+        const double s = dp / select_double(x, dp - dq, 1.0); /* as in clip_triangle */
         double c[3];
         for (int k = 0; k < 3; ++k) c[k] = p[k] + s * (q[k] - p[k]);
         c[axis] = pos;
