@@ -5,7 +5,6 @@
 
 #include "as/as.h"
 
-#include <math.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>

@@ -792,19 +792,13 @@ typedef struct kd_emit {
     double ct, ci, root_area, sah; /* the SAH cost, summed as as_kd_sah_cost sums it */
 } kd_emit;
 
-static double box_half_area(const float b[6])
-{
-    const double dx = (double)b[3] - b[0], dy = (double)b[4] - b[1], dz = (double)b[5] - b[2];
-    return dx * dy + dy * dz + dz * dx;
-}
-
 /* Writes the subtree of t (box `box`) in preorder, the left child first, and
  * adds its SAH cost in that order: the sum as_kd_sah_cost makes from the
  * written tree, bit for bit, without walking it again. */
 static void emit(const kd_tmp *t, const float box[6], kd_emit *e)
 {
     const uint64_t me = e->node_next++;
-    const double ratio = e->root_area > 0 ? box_half_area(box) / e->root_area : 1.0;
+    const double ratio = e->root_area > 0 ? as_spatial_half_area(box, box + 3) / e->root_area : 1.0;
     if (!t->child[0]) {
         e->sah += e->ci * t->count * ratio;
         e->nodes[me].word0 = (uint32_t)e->prim_next;
@@ -963,7 +957,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
         scratch_free_all(&run);
         return as_get_error();
     }
-    kd_emit e = {nodes, prim, 0, 0, 0, args->cost_traversal, args->cost_intersection, box_half_area(box), 0.0};
+    kd_emit e = {nodes, prim, 0, 0, 0, args->cost_traversal, args->cost_intersection, as_spatial_half_area(box, box + 3), 0.0};
     emit(root, box, &e);
     scratch_free_all(&run);
 
