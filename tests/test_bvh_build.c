@@ -88,11 +88,11 @@ static void build_is_byte_identical_whatever_the_thread_count(void)
             save_with_threads(meshes[k], threads[t], path);
             size_t size = 0;
             CHECK(test_read_file(path, &data, &size));
+            unlink(path);
             if (!first) { first = data; first_size = size; continue; }
             CHECK_EQ_U64(size, first_size);
             CHECK(size == first_size && memcmp(data, first, size) == 0);
             free(data);
-            unlink(path);
         }
         free(first);
         as_mesh_release(meshes[k]);
