@@ -482,6 +482,23 @@ static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float
     clipped_ref(old, box[1], above ? lo[1] : NULL, hi[1], out[1]);
 }
 
+void kd_clip_reference(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
+{
+    clip_ref(tris, old, box, out);
+}
+
+void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], int axis, float pos,
+                             kd_ref out[2])
+{
+    float box[2][6];
+    memcpy(box[0], node_box, sizeof box[0]);
+    memcpy(box[1], node_box, sizeof box[1]);
+    box[0][axis + 3] = pos;
+    box[1][axis] = pos;
+    kd_ref *outs[2] = {&out[0], &out[1]};
+    clip_ref_split(tris, old, node_box, (const float(*)[6])box, axis, pos, outs);
+}
+
 /* A subtree to build: the node's references, the builder's data, its box,
  * and where the finished subtree goes (its parent's child pointer). */
 typedef struct kd_task {

@@ -111,6 +111,17 @@ void kd_clipped_ref_plain(const kd_ref *old, const float box[6], const double *d
 void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out);
 #endif
 
+/* A node's references as its partition makes them: triangle old->id of
+ * `tris` clipped to `box` and intersected with old's box; and both
+ * children's of a split of `node_box` at `pos` on `axis`, from one clip.
+ * The boxes hold the exact clipped triangle: its bounds are computed in
+ * double precision and rounded outwards. Where clipping leaves nothing (a
+ * triangle touching the box, or missing it by rounding), the box is old's
+ * within `box`: a reference is never dropped. */
+void kd_clip_reference(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out);
+void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], int axis, float pos,
+                             kd_ref out[2]);
+
 /* Builds the tree with `ops` and fills s (META and the KD-standard
  * sections, then the ropes when args->layout asks for them). */
 as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd_builder_ops *ops, as_structure_t *s);
