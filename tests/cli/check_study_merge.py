@@ -163,6 +163,16 @@ def main():
         check(sorted(v["variant"] for v in got["variants"]) == sorted(both), "--replace keeps one row per variant")
         check(got.get("replaced") == [{"variant": "BVH (SAH)", "from": order[0], "by": order[1]}],
               "results.json names the replaced row and both parts")
+        # Merged again with a newer part: the first merge's history stays.
+        again = rep_out + "-again"
+        shutil.rmtree(again, ignore_errors=True)
+        code, _, err = run(study + ["--merge", os.path.join(rep_out, "bunny"), single, "--replace", "--out", again])
+        later = json.load(open(os.path.join(again, "bunny", "results.json"))) if code == 0 else {}
+        newer = [r for r in later.get("replaced", [])[1:] if r.get("by") == single]
+        check(code == 0 and later["replaced"][:1] == got["replaced"] and len(newer) == len(both) and
+              len(later["replaced"]) == 1 + len(both) and later["merged_from"][0].get("merged_from") == got["merged_from"],
+              "a merge of a merged folder keeps its replaced rows and its merged_from" +
+              ("" if code == 0 else ": " + err[-400:]))
     code, _, err = run(study + ["--replace", bunny] + small())
     check(code == 1 and "--replace goes with --merge" in err, "--replace without --merge is a usage error")
     code, _, err = run(study + ["--merge", os.path.join(work, "nothing"), "--out", refused])
