@@ -37,6 +37,9 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 enum { EV_END = 0, EV_PLANAR = 1, EV_START = 2 };
 
@@ -634,8 +637,8 @@ typedef struct sweep_chunk {
     /* Index 0 is the last group of the chunk before (or zeros). Per group:
      * its key and the events up to and including it (high half), and the
      * END (low half) and PLANAR events among those: two stores per event. */
-    uint64_t key_events[SWEEP_CHUNK + 1], counts[SWEEP_CHUNK + 1];
-    float cost[SWEEP_CHUNK + 1];
+    uint64_t key_events[SWEEP_CHUNK + 4], counts[SWEEP_CHUNK + 4];
+    float cost[SWEEP_CHUNK + 4]; /* three spare slots: the vector loops price groups four at a time */
 } sweep_chunk;
 
 /* What an event adds to the END (low half) and PLANAR (high half) counts,
@@ -657,19 +660,166 @@ static inline void group_sides(const sweep_chunk *g, size_t q, uint32_t np_total
     *p_eq = p;
 }
 
+/* What pricing a group needs of its axis and node. */
+typedef struct sweep_prices {
+    uint32_t np_total, p_total, key_lo, key_hi;
+    float face, rim, lo, hi, ct, ci;
+} sweep_prices;
+
+/* Pass 2 of sweep_range: the single-precision cost of groups 1 .. k-1 of g
+ * into g->cost (infinite for planes on the node's faces), and the lowest. */
+static float price_groups(sweep_chunk *g, size_t k, const sweep_prices *sp)
+{
+#if defined(__SSE2__)
+    /* Four groups at a time, each step the scalar form's in the same order
+     * (SSE2 has no fused multiply-add, and neither has the scalar code), so
+     * the costs are the same floats. The groups past the last are copies of
+     * it on the low face, so they price as infinite. */
+    for (size_t j = 0; j < 3; ++j) {
+        g->key_events[k + j] = ((uint64_t)sp->key_lo << 32) | (uint32_t)g->key_events[k - 1];
+        g->counts[k + j] = g->counts[k - 1];
+    }
+    const __m128i sign = _mm_set1_epi32((int)0x80000000u), ones = _mm_set1_epi32(-1), zero = _mm_setzero_si128();
+    const __m128i np_total = _mm_set1_epi32((int)sp->np_total), p_total = _mm_set1_epi32((int)sp->p_total);
+    const __m128i key_lo = _mm_xor_si128(_mm_set1_epi32((int)sp->key_lo), sign);
+    const __m128i key_hi = _mm_xor_si128(_mm_set1_epi32((int)sp->key_hi), sign);
+    const __m128 face = _mm_set1_ps(sp->face), rim = _mm_set1_ps(sp->rim), lo = _mm_set1_ps(sp->lo);
+    const __m128 hi = _mm_set1_ps(sp->hi), ct = _mm_set1_ps(sp->ct), ci = _mm_set1_ps(sp->ci);
+    const __m128 bonus = _mm_set1_ps(0.8f), one = _mm_set1_ps(1.0f), inf = _mm_set1_ps(INFINITY);
+    __m128 low = inf;
+#define LOW_HALVES(a, b) _mm_castps_si128(_mm_shuffle_ps(_mm_castsi128_ps(a), _mm_castsi128_ps(b), _MM_SHUFFLE(2, 0, 2, 0)))
+#define HIGH_HALVES(a, b) _mm_castps_si128(_mm_shuffle_ps(_mm_castsi128_ps(a), _mm_castsi128_ps(b), _MM_SHUFFLE(3, 1, 3, 1)))
+    for (size_t q = 1; q < k; q += 4) {
+        const __m128i ke0 = _mm_loadu_si128((const __m128i *)&g->key_events[q]);
+        const __m128i ke1 = _mm_loadu_si128((const __m128i *)&g->key_events[q + 2]);
+        const __m128i kp0 = _mm_loadu_si128((const __m128i *)&g->key_events[q - 1]);
+        const __m128i kp1 = _mm_loadu_si128((const __m128i *)&g->key_events[q + 1]);
+        const __m128i c0 = _mm_loadu_si128((const __m128i *)&g->counts[q]);
+        const __m128i c1 = _mm_loadu_si128((const __m128i *)&g->counts[q + 2]);
+        const __m128i cp0 = _mm_loadu_si128((const __m128i *)&g->counts[q - 1]);
+        const __m128i cp1 = _mm_loadu_si128((const __m128i *)&g->counts[q + 1]);
+        const __m128i key = HIGH_HALVES(ke0, ke1), events = LOW_HALVES(ke0, ke1), events_before = LOW_HALVES(kp0, kp1);
+        const __m128i ends = LOW_HALVES(c0, c1), planars = HIGH_HALVES(c0, c1);
+        const __m128i ends_before = LOW_HALVES(cp0, cp1), planars_before = HIGH_HALVES(cp0, cp1);
+        /* group_sides, lane by lane. */
+        const __m128i p = _mm_sub_epi32(planars, planars_before), e_eq = _mm_sub_epi32(ends, ends_before);
+        const __m128i s_eq = _mm_sub_epi32(_mm_sub_epi32(_mm_sub_epi32(events, events_before), e_eq), p);
+        const __m128i nl0 = _mm_add_epi32(_mm_sub_epi32(events_before, ends_before), s_eq);
+        const __m128i nr0 =
+            _mm_add_epi32(_mm_add_epi32(_mm_sub_epi32(np_total, ends), _mm_sub_epi32(p_total, planars)), e_eq);
+        const __m128i nl = _mm_add_epi32(nl0, p), nr = _mm_add_epi32(nr0, p);
+        /* key_float: the bits of a negative position are the key's
+         * complement, those of a positive one the key without its top bit. */
+        const __m128i negative = _mm_srai_epi32(key, 31);
+        const __m128 pos = _mm_castsi128_ps(_mm_or_si128(_mm_and_si128(negative, _mm_andnot_si128(sign, key)),
+                                                         _mm_andnot_si128(negative, _mm_xor_si128(key, ones))));
+        const __m128 al = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(pos, lo)));
+        const __m128 ar = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(hi, pos)));
+        const __m128i empty_l = _mm_or_si128(_mm_cmpeq_epi32(nl, zero), _mm_cmpeq_epi32(nr0, zero));
+        const __m128i empty_r = _mm_or_si128(_mm_cmpeq_epi32(nl0, zero), _mm_cmpeq_epi32(nr, zero));
+        const __m128 lambda_l = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_l), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_l), one));
+        const __m128 lambda_r = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_r), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_r), one));
+        const __m128 cost_l = _mm_mul_ps(
+            lambda_l, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl)),
+                                                               _mm_mul_ps(ar, _mm_cvtepi32_ps(nr0))))));
+        const __m128 cost_r = _mm_mul_ps(
+            lambda_r, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl0)),
+                                                               _mm_mul_ps(ar, _mm_cvtepi32_ps(nr))))));
+        const __m128i signed_key = _mm_xor_si128(key, sign);
+        const __m128 inside =
+            _mm_castsi128_ps(_mm_and_si128(_mm_cmpgt_epi32(signed_key, key_lo), _mm_cmplt_epi32(signed_key, key_hi)));
+        const __m128 cost = _mm_or_ps(_mm_and_ps(inside, _mm_min_ps(cost_l, cost_r)), _mm_andnot_ps(inside, inf));
+        _mm_storeu_ps(&g->cost[q], cost);
+        low = _mm_min_ps(low, cost);
+    }
+#undef LOW_HALVES
+#undef HIGH_HALVES
+    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(1, 0, 3, 2)));
+    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(2, 3, 0, 1)));
+    return _mm_cvtss_f32(low);
+#else
+    for (size_t q = 1; q < k; ++q) {
+        const uint32_t key = (uint32_t)(g->key_events[q] >> 32);
+        const float pos = key_float(key);
+        uint32_t nl0, nr0, p_eq;
+        group_sides(g, q, sp->np_total, sp->p_total, &nl0, &nr0, &p_eq);
+        const float al = sp->face + sp->rim * (pos - sp->lo), ar = sp->face + sp->rim * (sp->hi - pos);
+        const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
+        const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
+        const float lambda_r = (nl0 == 0 || nr == 0) ? 0.8f : 1.0f;
+        const float cost_l = lambda_l * (sp->ct + sp->ci * (al * (float)nl + ar * (float)nr0));
+        const float cost_r = lambda_r * (sp->ct + sp->ci * (al * (float)nl0 + ar * (float)nr));
+        const float cost = cost_l < cost_r ? cost_l : cost_r;
+        g->cost[q] = (key > sp->key_lo && key < sp->key_hi) ? cost : INFINITY;
+    }
+    float low[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
+    for (size_t q = 1; q < k; ++q) low[q & 3] = g->cost[q] < low[q & 3] ? g->cost[q] : low[q & 3];
+    const float low01 = low[0] < low[1] ? low[0] : low[1], low23 = low[2] < low[3] ? low[2] : low[3];
+    return low01 < low23 ? low01 : low23;
+#endif
+}
+
+/* The lowest cost found so far and the plane of it. */
+typedef struct sweep_best {
+    double cost, threshold; /* groups priced above threshold in single precision cannot beat cost */
+    float pos;
+    int planar_left, found;
+    uint32_t count[2];
+} sweep_best;
+
+/* Pass 3 of sweep_range for group q: its exact cost, in double precision,
+ * unless its single-precision cost shows it cannot beat the best. */
+static inline void price_group_exactly(const sweep_chunk *g, size_t q, const sweep_prices *sp, double face, double rim,
+                                       double lo, double hi, double ct, double ci, int filter, sweep_best *b)
+{
+    const uint32_t key = (uint32_t)(g->key_events[q] >> 32);
+    if (!(key > sp->key_lo && key < sp->key_hi) || (filter && !((double)g->cost[q] <= b->threshold))) return;
+    uint32_t nl0, nr0, p_eq;
+    group_sides(g, q, sp->np_total, sp->p_total, &nl0, &nr0, &p_eq);
+    const float pos = key_float(key);
+    const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
+    /* The group's planar triangles below first, then above (without any,
+     * both cost the same and the second is never lower). */
+    const uint32_t nl = nl0 + p_eq;
+    const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
+    const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
+    /* The counts priced are the children's sizes: kept for the driver,
+     * which then need not count them. */
+    if (cost < b->cost) {
+        b->cost = cost;
+        b->pos = pos;
+        b->planar_left = 1;
+        b->count[0] = nl;
+        b->count[1] = nr0;
+        b->found = 1;
+    }
+    const uint32_t nr = nr0 + p_eq;
+    const double lambda_r = (nl0 == 0 || nr == 0) ? 0.8 : 1.0;
+    const double cost_r = lambda_r * (ct + ci * (al * nl0 + ar * nr));
+    if (cost_r < b->cost) {
+        b->cost = cost_r;
+        b->pos = pos;
+        b->planar_left = 0;
+        b->count[0] = nl0;
+        b->count[1] = nr;
+        b->found = 1;
+    }
+    if (b->cost * (1.0 + SWEEP_MARGIN) < b->threshold) b->threshold = b->cost * (1.0 + SWEEP_MARGIN);
+}
+
 /* Sweeps events [begin, end) of the axis's list, which start a group and
  * end one, with `ends0` END and `planars0` PLANAR events before them, into
  * *b: the first plane of the lowest cost below the limit. */
 static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end, uint32_t ends0, uint32_t planars0,
                         axis_best *b)
 {
-    b->cost = cj->limit;
-    b->found = 0;
     const float *box = cj->box;
     const double ct = cj->ct, ci = cj->ci, area = cj->area;
     const uint64_t *ev = cj->e->list[axis];
     const size_t m = cj->e->count[axis];
-    const uint32_t p_total = (uint32_t)(2 * (size_t)cj->e->n - m), np_total = (uint32_t)(m - cj->e->n);
+    sweep_prices sp;
+    sp.p_total = (uint32_t)(2 * (size_t)cj->e->n - m);
+    sp.np_total = (uint32_t)(m - cj->e->n);
     /* A side's half area is linear in the plane's position: the face across
      * the axis plus the perimeter of that face times the side's length
      * along it. */
@@ -677,8 +827,14 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
     const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
     const double face = e1 * e2 / area, rim = (e1 + e2) / area;
     const double lo = box[axis], hi = box[axis + 3];
-    const float face_f = (float)face, rim_f = (float)rim, lo_f = box[axis], hi_f = box[axis + 3];
-    const float ct_f = (float)ct, ci_f = (float)ci;
+    sp.face = (float)face;
+    sp.rim = (float)rim;
+    sp.lo = box[axis];
+    sp.hi = box[axis + 3];
+    sp.ct = (float)ct;
+    sp.ci = (float)ci;
+    sp.key_lo = float_key(box[axis]);
+    sp.key_hi = float_key(box[axis + 3]);
     /* The single-precision bound needs every term within float's normal
      * range: the costs near 1, and a box not so thin along the axis that
      * the perimeter term (1 / its width, at most) overflows. Each side's
@@ -687,11 +843,7 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
      * near a face), whose relative error in single precision has no bound.
      * Otherwise every group is priced exactly. */
     const int filter = ci >= 1e-12 && ci <= 1e12 && ct >= 1e-12 && ct <= 1e12 && rim < 1e30;
-    const uint32_t key_lo = float_key(box[axis]), key_hi = float_key(box[axis + 3]);
-    double best = cj->limit, threshold = best * (1.0 + SWEEP_MARGIN);
-    float best_pos = 0.0f;
-    int best_planar_left = 0, found = 0;
-    uint32_t best_count[2] = {0, 0};
+    sweep_best best = {cj->limit, cj->limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
     sweep_chunk g;
     uint64_t counts = ((uint64_t)planars0 << 32) | ends0;
     g.key_events[0] = begin;
@@ -708,73 +860,37 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
             k += event_key(next) != event_key(e);
             e = next;
         }
-        for (size_t q = 1; q < k; ++q) {
-            const uint32_t key = (uint32_t)(g.key_events[q] >> 32);
-            const uint32_t bits = (key & 0x80000000u) ? key & 0x7fffffffu : ~key;
-            float pos;
-            memcpy(&pos, &bits, sizeof pos);
-            uint32_t nl0, nr0, p_eq;
-            group_sides(&g, q, np_total, p_total, &nl0, &nr0, &p_eq);
-            const float al = face_f + rim_f * (pos - lo_f), ar = face_f + rim_f * (hi_f - pos);
-            const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
-            const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
-            const float lambda_r = (nl0 == 0 || nr == 0) ? 0.8f : 1.0f;
-            const float cost_l = lambda_l * (ct_f + ci_f * (al * (float)nl + ar * (float)nr0));
-            const float cost_r = lambda_r * (ct_f + ci_f * (al * (float)nl0 + ar * (float)nr));
-            const float cost = cost_l < cost_r ? cost_l : cost_r;
-            g.cost[q] = (key > key_lo && key < key_hi) ? cost : INFINITY;
-        }
         /* Only groups near the chunk's lowest can hold its best plane. */
-        float low[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
-        for (size_t q = 1; q < k; ++q) low[q & 3] = g.cost[q] < low[q & 3] ? g.cost[q] : low[q & 3];
-        const float low01 = low[0] < low[1] ? low[0] : low[1], low23 = low[2] < low[3] ? low[2] : low[3];
-        const float chunk_low = low01 < low23 ? low01 : low23;
-        const double chunk_threshold = (double)chunk_low * (1.0 + SWEEP_MARGIN);
-        if (chunk_threshold < threshold) threshold = chunk_threshold;
-        for (size_t q = 1; q < k; ++q) {
-            const uint32_t key = (uint32_t)(g.key_events[q] >> 32);
-            if (!(key > key_lo && key < key_hi) || (filter && !((double)g.cost[q] <= threshold))) continue;
-            uint32_t nl0, nr0, p_eq;
-            group_sides(&g, q, np_total, p_total, &nl0, &nr0, &p_eq);
-            const float pos = key_float(key);
-            const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
-            /* The group's planar triangles below first, then above (without
-             * any, both cost the same and the second is never lower). */
-            const uint32_t nl = nl0 + p_eq;
-            const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
-            const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
-            /* The counts priced are the children's sizes: kept for the
-             * driver, which then need not count them. */
-            if (cost < best) {
-                best = cost;
-                best_pos = pos;
-                best_planar_left = 1;
-                best_count[0] = nl;
-                best_count[1] = nr0;
-                found = 1;
+        const double chunk_threshold = (double)price_groups(&g, k, &sp) * (1.0 + SWEEP_MARGIN);
+        if (chunk_threshold < best.threshold) best.threshold = chunk_threshold;
+#if defined(__SSE2__)
+        if (filter) {
+            /* Four groups' single-precision costs against the threshold
+             * (rounded up to a float: a looser test, each passing group is
+             * tested again exactly) in one compare; most fail. */
+            for (size_t q = 1; q < k; q += 4) {
+                float t = (float)best.threshold;
+                if ((double)t < best.threshold) t = as_float_next_up(t);
+                unsigned lanes = (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&g.cost[q]), _mm_set1_ps(t)));
+                if (k - q < 4) lanes &= (1u << (k - q)) - 1u;
+                while (lanes) {
+                    const size_t at = q + (size_t)__builtin_ctz(lanes);
+                    lanes &= lanes - 1u;
+                    price_group_exactly(&g, at, &sp, face, rim, lo, hi, ct, ci, filter, &best);
+                }
             }
-            const uint32_t nr = nr0 + p_eq;
-            const double lambda_r = (nl0 == 0 || nr == 0) ? 0.8 : 1.0;
-            const double cost_r = lambda_r * (ct + ci * (al * nl0 + ar * nr));
-            if (cost_r < best) {
-                best = cost_r;
-                best_pos = pos;
-                best_planar_left = 0;
-                best_count[0] = nl0;
-                best_count[1] = nr;
-                found = 1;
-            }
-            if (best * (1.0 + SWEEP_MARGIN) < threshold) threshold = best * (1.0 + SWEEP_MARGIN);
-        }
+        } else
+#endif
+            for (size_t q = 1; q < k; ++q) price_group_exactly(&g, q, &sp, face, rim, lo, hi, ct, ci, filter, &best);
         g.key_events[0] = g.key_events[k - 1];
         g.counts[0] = g.counts[k - 1];
     }
-    b->cost = best;
-    b->pos = best_pos;
-    b->planar_left = best_planar_left;
-    b->found = found;
-    b->count[0] = best_count[0];
-    b->count[1] = best_count[1];
+    b->cost = best.cost;
+    b->pos = best.pos;
+    b->planar_left = best.planar_left;
+    b->found = best.found;
+    b->count[0] = best.count[0];
+    b->count[1] = best.count[1];
 }
 
 static void sweep_axis(void *user, int axis)
