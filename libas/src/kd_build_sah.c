@@ -29,7 +29,12 @@
  * node's array: a node's references are in triangle order (the root's are,
  * and children keep their parent's order), so the two orders agree, and a
  * child takes its parent's events as they are, without renumbering; a byte
- * per triangle (kd_scratch.side) says which child keeps an event. */
+ * per triangle (kd_scratch.side) says which child keeps an event.
+ *
+ * Below SMALL_NODE_REFS references a node has no lists: every candidate is
+ * counted against every reference in vector compares, which costs less
+ * there than making, sorting and sweeping lists, and gives the same plane
+ * (sah_choose_small). */
 #include "kd_build.h"
 #include "task_pool.h"
 
@@ -135,6 +140,10 @@ typedef struct sah_events {
  * threads busy. The axes' results do not depend on which thread ran them. */
 #define PIECES_MAX 32
 #define PIECE_MIN_EVENTS 16384
+
+/* Nodes of at most this many references choose their planes without
+ * event lists (sah_choose_small). */
+#define SMALL_NODE_REFS 32
 
 static unsigned axis_threads(const kd_ctx *c, const sah_events *e, uint32_t n)
 {
@@ -347,7 +356,7 @@ static void child_axis_events(void *user, int a)
     fresh[0] = cj->fresh[a];
     for (int side = 0; side < 2; ++side) {
         size_t nf = 0;
-        for (uint32_t k = 0; k < how->clipped_n[side]; ++k) {
+        for (uint32_t k = 0; e[side] && k < how->clipped_n[side]; ++k) {
             const kd_ref *r = &cj->child_refs[side][how->clipped[side][k]];
             nf += put_fresh_events(fresh[side] + nf, r, a, how->side[r->id], side);
         }
@@ -356,7 +365,11 @@ static void child_axis_events(void *user, int a)
         if (side == 0) fresh[1] = fresh[0] + nf + 1;
     }
     const uint16_t *const keep = how->side;
-    uint64_t *o0 = e[0]->list[a], *o1 = e[1]->list[a];
+    /* A small child gets no lists (SMALL_NODE_REFS): its events are all
+     * written to one spare word, none kept. */
+    uint64_t spare[2];
+    uint64_t *o0 = e[0] ? e[0]->list[a] : spare, *o1 = e[1] ? e[1]->list[a] : spare;
+    const unsigned kept0 = e[0] ? 1u : 0u, kept1 = e[1] ? 1u : 0u;
     const uint64_t *f0 = fresh[0], *f1 = fresh[1];
     size_t n0 = 0, n1 = 0;
     const uint64_t *src = cj->parent->list[a];
@@ -380,8 +393,8 @@ static void child_axis_events(void *user, int a)
         /* Written always, kept by advancing: no branch on the side. */
         o0[n0] = ev;
         o1[n1] = ev;
-        n0 += f & 1u;
-        n1 += (f >> 6) & 1u;
+        n0 += f & kept0;
+        n1 += (f >> 6) & kept1;
     }
     while (y0 != UINT64_MAX) {
         o0[n0++] = y0;
@@ -391,8 +404,8 @@ static void child_axis_events(void *user, int a)
         o1[n1++] = y1;
         y1 = *++f1;
     }
-    e[0]->count[a] = n0;
-    e[1]->count[a] = n1;
+    if (e[0]) e[0]->count[a] = n0;
+    if (e[1]) e[1]->count[a] = n1;
     o0[n0] = UINT64_MAX;
     o1[n1] = UINT64_MAX;
 }
@@ -561,18 +574,24 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratc
                             const kd_ref *const child_refs[2], const uint32_t child_n[2], void *out[2])
 {
     const sah_events *p = parent_state;
+    out[0] = out[1] = NULL;
+    const unsigned pieces = p ? pieces_per_axis(c, p, parent_n) : 1;
+    /* Small children choose their planes without lists; the pieces below
+     * make both children's. */
+    const int listed[2] = {pieces > 1 || child_n[0] > SMALL_NODE_REFS, pieces > 1 || child_n[1] > SMALL_NODE_REFS};
+    if (!p || (!listed[0] && !listed[1])) return 1;
     child_job cj;
     memset(&cj, 0, sizeof cj);
     cj.parent = p;
     cj.how = how;
     cj.child_refs = child_refs;
-    cj.e[0] = events_alloc(2 * (size_t)child_n[0]);
-    cj.e[1] = events_alloc(2 * (size_t)child_n[1]);
-    if (!cj.e[0] || !cj.e[1]) goto fail;
-    cj.e[0]->root_n = cj.e[1]->root_n = p->root_n;
-    cj.e[0]->n = child_n[0];
-    cj.e[1]->n = child_n[1];
-    const unsigned pieces = pieces_per_axis(c, p, parent_n);
+    for (int side = 0; side < 2; ++side) {
+        if (!listed[side]) continue;
+        cj.e[side] = events_alloc(2 * (size_t)child_n[side]);
+        if (!cj.e[side]) goto fail;
+        cj.e[side]->root_n = p->root_n;
+        cj.e[side]->n = child_n[side];
+    }
     if (pieces > 1) {
         if (!child_events_in_pieces(&cj, how, as_thread_count(c->args->thread_count), pieces)) goto fail;
     } else {
@@ -1000,11 +1019,246 @@ static void sweep_in_pieces(choose_job *cj, unsigned threads, unsigned per_axis)
     free(sp);
 }
 
+/* A node of at most SMALL_NODE_REFS references gets no event lists from
+ * its parent: its plane is chosen from its references themselves. Every
+ * candidate (a bound of a reference strictly inside the box) is counted
+ * against every reference, four candidates in one vector compare, which for
+ * so few references costs less than the lists that the sweep would read and
+ * that the parent would have to make and sort. The plane is the sweep's:
+ * the same counts and costs, and ties resolved as the sweep resolves them
+ * (the lowest position, triangles in the plane below before above, the
+ * lowest axis). */
+#define SMALL_CANDIDATES (2 * SMALL_NODE_REFS)
+
+/* One axis of a small node: its references' bounds on the axis, split into
+ * those with extent (a START and an END event) and flat ones (PLANAR). */
+typedef struct small_axis {
+    float lo[SMALL_NODE_REFS], hi[SMALL_NODE_REFS], flat[SMALL_NODE_REFS];
+    uint32_t n_lo, n_flat;
+    float cand[SMALL_CANDIDATES + 8];
+    uint32_t n_cand;
+    /* Per candidate: the counts the sweep's group gives (below, above, in
+     * the plane), and its single-precision cost; room for the vector loop's
+     * last eight. */
+    uint32_t nl0[SMALL_CANDIDATES + 8], nr0[SMALL_CANDIDATES + 8], in_plane[SMALL_CANDIDATES + 8];
+    float cost[SMALL_CANDIDATES + 8];
+} small_axis;
+
+/* Counts and single-precision costs of every candidate of s, the lowest
+ * returned; `sp` as for a sweep (key_lo, key_hi unused). */
+#if defined(__SSE2__)
+/* The prices of four candidates at pos with their counts, into s at j. */
+static inline __m128 price_small_four(small_axis *s, uint32_t j, __m128 pos, __m128i nl0, __m128i nr0, __m128i p_eq,
+                                      const sweep_prices *sp)
+{
+    const __m128i zero = _mm_setzero_si128();
+    const __m128 bonus = _mm_set1_ps(0.8f), one = _mm_set1_ps(1.0f), inf = _mm_set1_ps(INFINITY);
+    const __m128 face = _mm_set1_ps(sp->face), rim = _mm_set1_ps(sp->rim), ct = _mm_set1_ps(sp->ct), ci = _mm_set1_ps(sp->ci);
+    const __m128i nl = _mm_add_epi32(nl0, p_eq), nr = _mm_add_epi32(nr0, p_eq);
+    const __m128 al = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(pos, _mm_set1_ps(sp->lo))));
+    const __m128 ar = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(_mm_set1_ps(sp->hi), pos)));
+    const __m128i empty_l = _mm_or_si128(_mm_cmpeq_epi32(nl, zero), _mm_cmpeq_epi32(nr0, zero));
+    const __m128i empty_r = _mm_or_si128(_mm_cmpeq_epi32(nl0, zero), _mm_cmpeq_epi32(nr, zero));
+    const __m128 lambda_l = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_l), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_l), one));
+    const __m128 lambda_r = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_r), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_r), one));
+    const __m128 cost_l = _mm_mul_ps(
+        lambda_l, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl)), _mm_mul_ps(ar, _mm_cvtepi32_ps(nr0))))));
+    const __m128 cost_r = _mm_mul_ps(
+        lambda_r, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl0)), _mm_mul_ps(ar, _mm_cvtepi32_ps(nr))))));
+    /* Lanes past the last candidate price as infinite. */
+    const __m128 real = _mm_castsi128_ps(
+        _mm_cmplt_epi32(_mm_add_epi32(_mm_set1_epi32((int)j), _mm_set_epi32(3, 2, 1, 0)), _mm_set1_epi32((int)s->n_cand)));
+    const __m128 cost = _mm_or_ps(_mm_and_ps(real, _mm_min_ps(cost_l, cost_r)), _mm_andnot_ps(real, inf));
+    _mm_storeu_ps(&s->cost[j], cost);
+    _mm_storeu_si128((__m128i *)&s->nl0[j], nl0);
+    _mm_storeu_si128((__m128i *)&s->nr0[j], nr0);
+    _mm_storeu_si128((__m128i *)&s->in_plane[j], p_eq);
+    return cost;
+}
+#endif
+
+static float price_small_axis(small_axis *s, const sweep_prices *sp)
+{
+#if defined(__SSE2__)
+    /* Each reference's bounds in every lane, the references with extent
+     * padded to an even count with one that is on no side. */
+    __m128 lo4[SMALL_NODE_REFS + 1], hi4[SMALL_NODE_REFS + 1], flat4[SMALL_NODE_REFS];
+    for (uint32_t k = 0; k < s->n_lo; ++k) {
+        lo4[k] = _mm_set1_ps(s->lo[k]);
+        hi4[k] = _mm_set1_ps(s->hi[k]);
+    }
+    lo4[s->n_lo] = _mm_set1_ps(INFINITY);
+    hi4[s->n_lo] = _mm_set1_ps(-INFINITY);
+    for (uint32_t k = 0; k < s->n_flat; ++k) flat4[k] = _mm_set1_ps(s->flat[k]);
+    const __m128i zero = _mm_setzero_si128();
+    __m128 low = _mm_set1_ps(INFINITY);
+    /* Eight candidates at a time. A reference with extent is below a plane
+     * it starts at or before, above one it ends at or after; a flat one is
+     * below, above or in the plane. The masks are -1 where true. */
+    for (uint32_t j = 0; j < s->n_cand; j += 8) {
+        const __m128 pos_a = _mm_loadu_ps(&s->cand[j]), pos_b = _mm_loadu_ps(&s->cand[j + 4]);
+        __m128i nl0_a = zero, nr0_a = zero, p_eq_a = zero, nl0_b = zero, nr0_b = zero, p_eq_b = zero;
+        for (uint32_t k = 0; k < s->n_lo; k += 2) {
+            nl0_a = _mm_sub_epi32(nl0_a, _mm_castps_si128(_mm_cmple_ps(lo4[k], pos_a)));
+            nl0_b = _mm_sub_epi32(nl0_b, _mm_castps_si128(_mm_cmple_ps(lo4[k], pos_b)));
+            nr0_a = _mm_sub_epi32(nr0_a, _mm_castps_si128(_mm_cmpge_ps(hi4[k], pos_a)));
+            nr0_b = _mm_sub_epi32(nr0_b, _mm_castps_si128(_mm_cmpge_ps(hi4[k], pos_b)));
+            nl0_a = _mm_sub_epi32(nl0_a, _mm_castps_si128(_mm_cmple_ps(lo4[k + 1], pos_a)));
+            nl0_b = _mm_sub_epi32(nl0_b, _mm_castps_si128(_mm_cmple_ps(lo4[k + 1], pos_b)));
+            nr0_a = _mm_sub_epi32(nr0_a, _mm_castps_si128(_mm_cmpge_ps(hi4[k + 1], pos_a)));
+            nr0_b = _mm_sub_epi32(nr0_b, _mm_castps_si128(_mm_cmpge_ps(hi4[k + 1], pos_b)));
+        }
+        for (uint32_t k = 0; k < s->n_flat; ++k) {
+            nl0_a = _mm_sub_epi32(nl0_a, _mm_castps_si128(_mm_cmplt_ps(flat4[k], pos_a)));
+            nl0_b = _mm_sub_epi32(nl0_b, _mm_castps_si128(_mm_cmplt_ps(flat4[k], pos_b)));
+            nr0_a = _mm_sub_epi32(nr0_a, _mm_castps_si128(_mm_cmpgt_ps(flat4[k], pos_a)));
+            nr0_b = _mm_sub_epi32(nr0_b, _mm_castps_si128(_mm_cmpgt_ps(flat4[k], pos_b)));
+            p_eq_a = _mm_sub_epi32(p_eq_a, _mm_castps_si128(_mm_cmpeq_ps(flat4[k], pos_a)));
+            p_eq_b = _mm_sub_epi32(p_eq_b, _mm_castps_si128(_mm_cmpeq_ps(flat4[k], pos_b)));
+        }
+        low = _mm_min_ps(low, price_small_four(s, j, pos_a, nl0_a, nr0_a, p_eq_a, sp));
+        low = _mm_min_ps(low, price_small_four(s, j + 4, pos_b, nl0_b, nr0_b, p_eq_b, sp));
+    }
+    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(1, 0, 3, 2)));
+    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(2, 3, 0, 1)));
+    return _mm_cvtss_f32(low);
+#else
+    float low = INFINITY;
+    for (uint32_t j = 0; j < s->n_cand; ++j) {
+        const float pos = s->cand[j];
+        uint32_t nl0 = 0, nr0 = 0, p_eq = 0;
+        for (uint32_t k = 0; k < s->n_lo; ++k) {
+            nl0 += s->lo[k] <= pos;
+            nr0 += s->hi[k] >= pos;
+        }
+        for (uint32_t k = 0; k < s->n_flat; ++k) {
+            nl0 += s->flat[k] < pos;
+            nr0 += s->flat[k] > pos;
+            p_eq += s->flat[k] == pos;
+        }
+        const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
+        const float al = sp->face + sp->rim * (pos - sp->lo), ar = sp->face + sp->rim * (sp->hi - pos);
+        const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
+        const float lambda_r = (nl0 == 0 || nr == 0) ? 0.8f : 1.0f;
+        const float cost_l = lambda_l * (sp->ct + sp->ci * (al * (float)nl + ar * (float)nr0));
+        const float cost_r = lambda_r * (sp->ct + sp->ci * (al * (float)nl0 + ar * (float)nr));
+        s->cost[j] = cost_l < cost_r ? cost_l : cost_r;
+        s->nl0[j] = nl0;
+        s->nr0[j] = nr0;
+        s->in_plane[j] = p_eq;
+        low = s->cost[j] < low ? s->cost[j] : low;
+    }
+    return low;
+#endif
+}
+
+/* Whether a plane of this cost at pos replaces the best of a small node's
+ * axis: cheaper, or as cheap and lower (the sweep keeps the first of the
+ * lowest cost, and meets planes in increasing order). */
+static int small_plane_wins(const axis_best *b, double cost, float pos)
+{
+    if (!b->found) return cost < b->cost;
+    return cost < b->cost || (cost == b->cost && pos < b->pos);
+}
+
+static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, const float box[6], kd_split *out)
+{
+    const double ct = c->args->cost_traversal, ci = c->args->cost_intersection, area = half_area(box);
+    /* A bigger node without lists is one whose lists ran out of memory:
+     * the build stops, and the node becomes a leaf. */
+    if ((n <= 1 && ct >= ci) || n > SMALL_NODE_REFS) return 0;
+    if (!(area > 0.0)) return 0;
+    const double limit = ci * (double)n;
+    double best = limit;
+    int found = 0;
+    small_axis s;
+    for (int axis = 0; axis < 3; ++axis) {
+        const float box_lo = box[axis], box_hi = box[axis + 3];
+        if (!(box_hi > box_lo)) continue;
+        const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+        const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
+        const double face = e1 * e2 / area, rim = (e1 + e2) / area;
+        const double lo = box_lo, hi = box_hi;
+        sweep_prices sp;
+        sp.face = (float)face;
+        sp.rim = (float)rim;
+        sp.lo = box_lo;
+        sp.hi = box_hi;
+        sp.ct = (float)ct;
+        sp.ci = (float)ci;
+        const int filter = ci >= 1e-12 && ci <= 1e12 && ct >= 1e-12 && ct <= 1e12 && rim < 1e30;
+        s.n_lo = s.n_flat = s.n_cand = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            const float l = refs[i].lo[axis], h = refs[i].hi[axis];
+            if (l == h) {
+                s.flat[s.n_flat++] = l;
+            } else {
+                s.lo[s.n_lo] = l;
+                s.hi[s.n_lo++] = h;
+            }
+            s.cand[s.n_cand] = l;
+            s.n_cand += (l > box_lo) & (l < box_hi);
+            s.cand[s.n_cand] = h;
+            s.n_cand += (h != l) & (h > box_lo) & (h < box_hi);
+        }
+        /* The vector loop's lanes past the last candidate hold a number: a
+         * NaN there would raise the invalid flag in the caller's
+         * floating-point environment. */
+        for (uint32_t j = s.n_cand; j < s.n_cand + 8; ++j) s.cand[j] = box_lo;
+
+        const double low = (double)price_small_axis(&s, &sp) * (1.0 + SWEEP_MARGIN);
+        double threshold = limit * (1.0 + SWEEP_MARGIN);
+        if (low < threshold) threshold = low;
+        axis_best b = {limit, 0.0f, 0, 0, {0, 0}};
+        for (uint32_t j = 0; j < s.n_cand; ++j) {
+            if (filter && !((double)s.cost[j] <= threshold)) continue;
+            /* The sweep's position of a group: a key, in which -0 is 0. */
+            const float pos = s.cand[j] == 0.0f ? 0.0f : s.cand[j];
+            const uint32_t nl0 = s.nl0[j], nr0 = s.nr0[j], p_eq = s.in_plane[j];
+            const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
+            const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
+            const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
+            const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
+            if (small_plane_wins(&b, cost, pos)) {
+                b.cost = cost;
+                b.pos = pos;
+                b.planar_left = 1;
+                b.count[0] = nl;
+                b.count[1] = nr0;
+                b.found = 1;
+            }
+            const double lambda_r = (nl0 == 0 || nr == 0) ? 0.8 : 1.0;
+            const double cost_r = lambda_r * (ct + ci * (al * nl0 + ar * nr));
+            /* At one position, below wins a tie. */
+            if (cost_r < b.cost || (b.found && cost_r == b.cost && pos < b.pos)) {
+                b.cost = cost_r;
+                b.pos = pos;
+                b.planar_left = 0;
+                b.count[0] = nl0;
+                b.count[1] = nr;
+                b.found = 1;
+            }
+            if (b.cost * (1.0 + SWEEP_MARGIN) < threshold) threshold = b.cost * (1.0 + SWEEP_MARGIN);
+        }
+        if (b.found && b.cost < best) {
+            best = b.cost;
+            out->axis = axis;
+            out->pos = b.pos;
+            out->planar_left = b.planar_left;
+            out->counted = 1;
+            out->count[0] = b.count[0];
+            out->count[1] = b.count[1];
+            found = 1;
+        }
+    }
+    return found;
+}
+
 static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t n, const float box[6],
                       uint32_t depth, kd_split *out)
 {
-    (void)refs;
     (void)depth;
+    if (!state) return sah_choose_small(c, refs, n, box, out);
     choose_job cj;
     cj.e = state;
     cj.box = box;
