@@ -5,7 +5,9 @@
  * rejects damaged trees and ropes, and conversion kd-standard <-> kd-ropes
  * that keeps the tree bytes and round-trips to the same file; clipped
  * references' boxes that hold the exact clipped triangle, clipping's two
- * forms equal bit for bit, and no division-by-zero or invalid flag raised.
+ * forms equal bit for bit, no division-by-zero or invalid flag raised, and
+ * (SAH) a small node's plane chosen without event lists the same as the
+ * sweep's.
  *
  *   test_kd BUILDER        (midcut | sah) */
 #include "reference.h"
@@ -704,6 +706,73 @@ static void a_build_raises_no_division_by_zero_or_invalid_flag(void)
     as_mesh_release(m);
 }
 
+/* A grid value in [lo, hi] (multiples of 1/4), zero half the time as -0. */
+static float grid_value(uint64_t *st, float lo, float hi)
+{
+    const int a = (int)(lo * 4.0f), b = (int)(hi * 4.0f);
+    const float v = (float)(a + (int)(ref_rand01(st) * (b - a + 1) * 0.9999)) * 0.25f;
+    return v == 0.0f && ref_rand01(st) < 0.5 ? -0.0f : v;
+}
+
+static void small_nodes_choose_the_sweeps_plane(void)
+{
+    if (builder != AS_BUILDER_KD_SAH) return;
+    /* Traversal and intersection costs; a traversal cost of 0 makes the
+     * sweep price every plane exactly. */
+    static const float costs[][2] = {{1, 1}, {0.1f, 1}, {3, 1}, {1, 2.5f}, {0, 1}};
+    uint64_t st = 2024;
+    long split = 0, leaf = 0, differ = 0;
+    for (int it = 0; it < 60000; ++it) {
+        as_build_args_t a = kd_args(AS_LAYOUT_KD_STANDARD);
+        a.thread_count = 1;
+        a.cost_traversal = costs[it % 5][0];
+        a.cost_intersection = costs[it % 5][1];
+        const uint32_t n = 1 + (uint32_t)(ref_rand01(&st) * 31.999);
+        /* Boxes on a coarse grid, so that bounds coincide, lie on the
+         * faces and tie; some flat along an axis, some crossing zero. */
+        float box[6];
+        for (int k = 0; k < 3; ++k) {
+            box[k] = -0.25f * (float)(int)(ref_rand01(&st) * 8.0);
+            box[k + 3] = ref_rand01(&st) < 0.04 ? box[k] : 0.25f * (float)(1 + (int)(ref_rand01(&st) * 8.0));
+        }
+        kd_ref refs[32];
+        uint32_t id = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            id += 1 + (uint32_t)(ref_rand01(&st) * 3.0);
+            refs[i].id = id;
+            for (int k = 0; k < 3; ++k) {
+                float l = grid_value(&st, box[k], box[k + 3]), h = grid_value(&st, box[k], box[k + 3]);
+                if (h < l) { const float t = l; l = h; h = t; }
+                if (ref_rand01(&st) < 0.2) h = l;                      /* flat along the axis */
+                if (ref_rand01(&st) < 0.15) l = box[k];                /* on a face */
+                if (ref_rand01(&st) < 0.15) h = box[k + 3];
+                if (h < l) h = l;
+                refs[i].lo[k] = l;
+                refs[i].hi[k] = h;
+            }
+        }
+        kd_split swept, counted;
+        memset(&swept, 0, sizeof swept);
+        memset(&counted, 0, sizeof counted);
+        const int r0 = kd_sah_choose_plane(&a, refs, n, box, 1, &swept);
+        const int r1 = kd_sah_choose_plane(&a, refs, n, box, 0, &counted);
+        int same = r0 == r1 && r0 >= 0;
+        if (same && r0 == 1)
+            same = swept.axis == counted.axis && memcmp(&swept.pos, &counted.pos, sizeof swept.pos) == 0 &&
+                   swept.planar_left == counted.planar_left && swept.count[0] == counted.count[0] &&
+                   swept.count[1] == counted.count[1];
+        if (!same && differ++ < 5)
+            fprintf(stderr, "  node %d (%u refs): sweep %d axis %d at %a below %d (%u, %u); counted %d axis %d at %a below %d (%u, %u)\n",
+                    it, n, r0, swept.axis, swept.pos, swept.planar_left, swept.count[0], swept.count[1], r1, counted.axis,
+                    counted.pos, counted.planar_left, counted.count[0], counted.count[1]);
+        split += r0 == 1;
+        leaf += r0 == 0;
+    }
+    printf("  %ld nodes split, %ld leaves, %ld differ\n", split, leaf, differ);
+    CHECK(split > 10000 && leaf > 1000);
+    CHECK_EQ_INT(differ, 0);
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 2) { fprintf(stderr, "usage: %s midcut|sah\n", argv[0]); return 2; }
@@ -725,6 +794,7 @@ int main(int argc, char **argv)
     RUN_TEST(clipped_reference_forms_agree_bit_for_bit);
     RUN_TEST(clipped_boxes_hold_the_exact_clipped_triangle);
     RUN_TEST(a_build_raises_no_division_by_zero_or_invalid_flag);
+    RUN_TEST(small_nodes_choose_the_sweeps_plane);
     rmdir(tmpdir);
     TEST_EXIT();
 }

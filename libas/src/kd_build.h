@@ -122,6 +122,15 @@ void kd_clip_reference(const as_tri4_t *tris, const kd_ref *old, const float box
 void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], int axis, float pos,
                              kd_ref out[2]);
 
+/* The SAH builder's plane for a node of n references (in increasing id
+ * order) inside box: chosen by sweeping the node's sorted event lists
+ * (with_lists 1), or as a small node chooses it, from the references
+ * themselves (0; n at most 32). Returns 1 with the plane, 0 when the node
+ * is better a leaf, -1 when it cannot choose (out of memory, or too many
+ * references for the second way). The two ways give the same plane. */
+int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_t n, const float box[6], int with_lists,
+                        kd_split *out);
+
 /* Builds the tree with `ops` and fills s (META and the KD-standard
  * sections, then the ropes when args->layout asks for them). */
 as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd_builder_ops *ops, as_structure_t *s);

@@ -1292,6 +1292,24 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
     return found;
 }
 
+int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_t n, const float box[6], int with_lists,
+                        kd_split *out)
+{
+    as_mesh_t mesh;
+    memset(&mesh, 0, sizeof mesh);
+    mesh.triangle_count = n ? refs[n - 1].id + 1 : 0;
+    kd_ctx c;
+    memset(&c, 0, sizeof c);
+    c.args = args;
+    c.mesh = &mesh;
+    if (!with_lists) return n <= SMALL_NODE_REFS ? sah_choose(&c, NULL, refs, n, box, 0, out) : -1;
+    sah_events *e = sah_root_events(&c, refs, n);
+    if (!e) return -1;
+    const int chosen = sah_choose(&c, e, refs, n, box, 0, out);
+    free(e);
+    return chosen;
+}
+
 as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
 {
     static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, free};
