@@ -172,6 +172,10 @@ static int scratch_clipped_room(kd_scratch *s, uint32_t n)
     return 1;
 }
 
+/* Leaves report the build's progress in steps of this share of it: the
+ * progress callback is called at most every 1%. */
+#define REPORT_STEP (1.0 / 1024)
+
 static void report(kd_run *run, double weight)
 {
     const as_build_args_t *a = run->c->args;
@@ -231,7 +235,11 @@ static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, 
         }
     }
     free(refs);
-    report(run, weight);
+    sc->unreported += weight;
+    if (sc->unreported >= REPORT_STEP) {
+        report(run, sc->unreported);
+        sc->unreported = 0.0;
+    }
     return t;
 }
 
@@ -793,6 +801,10 @@ static void build_task(as_task_pool *pool, void *task, void *user)
         return;
     }
     build_subtree(pool, run, sc, t);
+    if (sc->unreported > 0.0) {
+        report(run, sc->unreported);
+        sc->unreported = 0.0;
+    }
     scratch_put(run, sc);
 }
 

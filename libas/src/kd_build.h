@@ -69,6 +69,10 @@ typedef struct kd_scratch {
      * build to size the tree's sections without another walk. */
     uint64_t inner, leaves, empty, refs;
     uint32_t max_depth;
+    /* The share of the build this thread's leaves finished and has not yet
+     * reported: reported in steps (kd_build.c), not leaf by leaf under the
+     * run's lock. */
+    double unreported;
 } kd_scratch;
 
 /* buf with room for `bytes` (its contents are not kept); NULL when out of

@@ -1152,6 +1152,55 @@ static float price_small_axis(small_axis *s, const sweep_prices *sp)
 #endif
 }
 
+/* The three axes of a small node, from one pass over its references:
+ * each reference's bounds go to the flat or the extended ones, and those
+ * strictly inside the box to the candidates. */
+static void small_axes_fill(small_axis axes[3], const kd_ref *refs, uint32_t n, const float box[6])
+{
+    uint32_t n_lo[3] = {0, 0, 0}, n_flat[3] = {0, 0, 0}, n_cand[3] = {0, 0, 0};
+#if defined(__SSE2__)
+    const __m128 box_lo = _mm_setr_ps(box[0], box[1], box[2], 0.0f), box_hi = _mm_setr_ps(box[3], box[4], box[5], 0.0f);
+#endif
+    for (uint32_t i = 0; i < n; ++i) {
+        const kd_ref *r = &refs[i];
+#if defined(__SSE2__)
+        /* lo with the first of hi after it, hi with the id's bits (a float
+         * below 2, never a NaN); the fourth lane is dropped. */
+        const __m128 l = _mm_loadu_ps(r->lo), h = _mm_loadu_ps(r->hi);
+        const unsigned flat = (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(l, h));
+        const unsigned l_in = (unsigned)_mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(l, box_lo), _mm_cmplt_ps(l, box_hi)));
+        const unsigned h_in =
+            (unsigned)_mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(h, box_lo), _mm_cmplt_ps(h, box_hi))) & ~flat;
+#else
+        unsigned flat = 0, l_in = 0, h_in = 0;
+        for (int a = 0; a < 3; ++a) {
+            flat |= (unsigned)(r->lo[a] == r->hi[a]) << a;
+            l_in |= (unsigned)(r->lo[a] > box[a] && r->lo[a] < box[a + 3]) << a;
+            h_in |= (unsigned)(r->lo[a] != r->hi[a] && r->hi[a] > box[a] && r->hi[a] < box[a + 3]) << a;
+        }
+#endif
+        for (int a = 0; a < 3; ++a) {
+            small_axis *s = &axes[a];
+            const float lo = r->lo[a], hi = r->hi[a];
+            const unsigned is_flat = (flat >> a) & 1u;
+            s->flat[n_flat[a]] = lo;
+            n_flat[a] += is_flat;
+            s->lo[n_lo[a]] = lo;
+            s->hi[n_lo[a]] = hi;
+            n_lo[a] += is_flat ^ 1u;
+            s->cand[n_cand[a]] = lo;
+            n_cand[a] += (l_in >> a) & 1u;
+            s->cand[n_cand[a]] = hi;
+            n_cand[a] += (h_in >> a) & 1u;
+        }
+    }
+    for (int a = 0; a < 3; ++a) {
+        axes[a].n_lo = n_lo[a];
+        axes[a].n_flat = n_flat[a];
+        axes[a].n_cand = n_cand[a];
+    }
+}
+
 /* Whether a plane of this cost at pos replaces the best of a small node's
  * axis: cheaper, or as cheap and lower (the sweep keeps the first of the
  * lowest cost, and meets planes in increasing order). */
@@ -1171,10 +1220,12 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
     const double limit = ci * (double)n;
     double best = limit;
     int found = 0;
-    small_axis s;
+    small_axis axes[3];
+    small_axes_fill(axes, refs, n, box);
     for (int axis = 0; axis < 3; ++axis) {
         const float box_lo = box[axis], box_hi = box[axis + 3];
         if (!(box_hi > box_lo)) continue;
+        small_axis *const sa = &axes[axis];
         const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
         const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
         const double face = e1 * e2 / area, rim = (e1 + e2) / area;
@@ -1187,34 +1238,19 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
         sp.ct = (float)ct;
         sp.ci = (float)ci;
         const int filter = ci >= 1e-12 && ci <= 1e12 && ct >= 1e-12 && ct <= 1e12 && rim < 1e30;
-        s.n_lo = s.n_flat = s.n_cand = 0;
-        for (uint32_t i = 0; i < n; ++i) {
-            const float l = refs[i].lo[axis], h = refs[i].hi[axis];
-            if (l == h) {
-                s.flat[s.n_flat++] = l;
-            } else {
-                s.lo[s.n_lo] = l;
-                s.hi[s.n_lo++] = h;
-            }
-            s.cand[s.n_cand] = l;
-            s.n_cand += (l > box_lo) & (l < box_hi);
-            s.cand[s.n_cand] = h;
-            s.n_cand += (h != l) & (h > box_lo) & (h < box_hi);
-        }
         /* The vector loop's lanes past the last candidate hold a number: a
          * NaN there would raise the invalid flag in the caller's
          * floating-point environment. */
-        for (uint32_t j = s.n_cand; j < s.n_cand + 8; ++j) s.cand[j] = box_lo;
-
-        const double low = (double)price_small_axis(&s, &sp) * (1.0 + SWEEP_MARGIN);
+        for (uint32_t j = sa->n_cand; j < sa->n_cand + 8; ++j) sa->cand[j] = box_lo;
+        const double low = (double)price_small_axis(sa, &sp) * (1.0 + SWEEP_MARGIN);
         double threshold = limit * (1.0 + SWEEP_MARGIN);
         if (low < threshold) threshold = low;
         axis_best b = {limit, 0.0f, 0, 0, {0, 0}};
-        for (uint32_t j = 0; j < s.n_cand; ++j) {
-            if (filter && !((double)s.cost[j] <= threshold)) continue;
+        for (uint32_t j = 0; j < sa->n_cand; ++j) {
+            if (filter && !((double)sa->cost[j] <= threshold)) continue;
             /* The sweep's position of a group: a key, in which -0 is 0. */
-            const float pos = s.cand[j] == 0.0f ? 0.0f : s.cand[j];
-            const uint32_t nl0 = s.nl0[j], nr0 = s.nr0[j], p_eq = s.in_plane[j];
+            const float pos = sa->cand[j] == 0.0f ? 0.0f : sa->cand[j];
+            const uint32_t nl0 = sa->nl0[j], nr0 = sa->nr0[j], p_eq = sa->in_plane[j];
             const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
             const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
             const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
