@@ -207,22 +207,7 @@ static void free_state(const kd_run *run, void *state)
     if (state && run->c->ops->free_state) run->c->ops->free_state(state);
 }
 
-#define KD_BLOCK_MIN_BYTES ((size_t)1 << 20)
-
-void *kd_block_take(size_t bytes)
-{
-    return bytes >= KD_BLOCK_MIN_BYTES ? as_block_take(bytes, 0, "KD build arrays") : malloc(bytes ? bytes : 1);
-}
-
-void kd_block_give(void *p, size_t bytes)
-{
-    if (bytes >= KD_BLOCK_MIN_BYTES) as_block_give(p, bytes, 0);
-    else free(p);
-}
-
-static size_t refs_bytes(uint32_t n) { return sizeof(kd_ref) * (n ? n : 1); }
-static kd_ref *refs_alloc(uint32_t n) { return kd_block_take(refs_bytes(n)); }
-static void refs_free(kd_ref *refs, uint32_t n) { kd_block_give(refs, refs_bytes(n)); }
+static kd_ref *refs_alloc(uint32_t n) { return malloc(sizeof(kd_ref) * (n ? n : 1)); }
 
 static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, void *state, uint32_t depth,
                          double weight)
@@ -249,7 +234,7 @@ static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, 
             t->count = n;
         }
     }
-    refs_free(refs, n);
+    free(refs);
     sc->unreported += weight;
     if (sc->unreported >= REPORT_STEP) {
         report(run, sc->unreported);
@@ -746,8 +731,8 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         kd_tmp *node = new_tmp(run, sc);
         if (!lr || !rr || !node || (hand_down && !scratch_clipped_room(sc, n))) {
             free(chunk_at);
-            if (lr) refs_free(lr, nl);
-            if (rr) refs_free(rr, nr);
+            free(lr);
+            free(rr);
             atomic_store(&run->oom, 1);
             *t.slot = make_leaf(run, sc, refs, n, t.state, t.depth, t.weight);
             return;
@@ -783,7 +768,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             if (!ops->child_states(c, t.state, sc, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
         }
         free_state(run, t.state);
-        refs_free(refs, n);
+        free(refs);
         node->axis = sp.axis;
         node->pos = sp.pos;
         *t.slot = node;
@@ -812,7 +797,7 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     if (!sc) {
         atomic_store(&run->oom, 1);
         free_state(run, t.state);
-        refs_free(t.refs, t.n);
+        free(t.refs);
         return;
     }
     build_subtree(pool, run, sc, t);
@@ -937,7 +922,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     init.refs = refs_alloc(n);
     as_tri4_t *tris = as_spatial_tris(mesh, threads);
     if (!init.refs || !tris) {
-        if (init.refs) refs_free(init.refs, n);
+        free(init.refs);
         free(tris);
         return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory building a KD tree");
     }

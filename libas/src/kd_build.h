@@ -79,12 +79,6 @@ typedef struct kd_scratch {
  * memory. */
 void *kd_scratch_reserve(kd_scratch *s, size_t bytes);
 
-/* The builds' arrays (references, event lists): from a megabyte on, blocks
- * that earlier builds and nodes gave back (as_block_take), which cost no
- * page faults; smaller ones from malloc. Give back with the same size. */
-void *kd_block_take(size_t bytes);
-void kd_block_give(void *p, size_t bytes);
-
 /* A builder: how it chooses splits, and, when it keeps per-node data (the
  * SAH builder's sorted event lists), how that data is made for the root and
  * handed down to the children. All state functions may be NULL. */

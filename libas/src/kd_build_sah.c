@@ -131,7 +131,6 @@ typedef struct sah_events {
     uint32_t n;      /* references in the node: each has one PLANAR event or a START and an END per axis,
                       * so an axis of m events has 2n - m PLANAR ones */
     uint32_t root_n; /* references at the root */
-    size_t bytes;    /* of this allocation (kd_block_give) */
 } sah_events;
 
 /* The three axes' work runs on threads of its own in a node that holds
@@ -194,22 +193,14 @@ static void for_each_axis(unsigned threads, void (*fn)(void *user, int axis), vo
  * finite position has), so the sweep can read one event past the last. */
 static sah_events *events_alloc(size_t per_axis)
 {
-    const size_t bytes = sizeof(sah_events) + sizeof(uint64_t) * 3 * (per_axis + 1);
-    sah_events *e = kd_block_take(bytes);
+    sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + 1));
     if (!e) return NULL;
-    e->bytes = bytes;
     uint64_t *base = (uint64_t *)(e + 1);
     for (int a = 0; a < 3; ++a) {
         e->list[a] = base + (size_t)a * (per_axis + 1);
         e->count[a] = 0;
     }
     return e;
-}
-
-static void events_free(void *state)
-{
-    sah_events *e = state;
-    if (e) kd_block_give(e, e->bytes);
 }
 
 /* Appends the events of reference `r` (index `index`) on `axis`. */
@@ -286,8 +277,7 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
         uint32_t first, end;
         root_half_range(r->n, h, &first, &end);
         const size_t at = root_half_at(r->n, h);
-        const size_t tmp_bytes = sizeof(uint64_t) * 2 * (size_t)(end > first ? end - first : 1);
-        uint64_t *out = r->e->list[a] + at, *tmp = kd_block_take(tmp_bytes);
+        uint64_t *out = r->e->list[a] + at, *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(end > first ? end - first : 1));
         if (!tmp) {
             atomic_store(&r->failed, 1);
             return;
@@ -295,7 +285,7 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
         size_t m = 0;
         for (uint32_t k = first; k < end; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id);
         sort_events(out, tmp, m);
-        kd_block_give(tmp, tmp_bytes);
+        free(tmp);
         out[m] = UINT64_MAX;
         r->run_count[a][h] = m;
     }
@@ -306,15 +296,14 @@ static void root_merge_axis(void *user, int a)
     root_job *r = user;
     const uint64_t *x = r->e->list[a], *y = r->e->list[a] + root_half_at(r->n, 1);
     const size_t m = r->run_count[a][0] + r->run_count[a][1];
-    const size_t out_bytes = sizeof(uint64_t) * (m ? m : 1);
-    uint64_t *out = kd_block_take(out_bytes);
+    uint64_t *out = malloc(sizeof(uint64_t) * (m ? m : 1));
     if (!out) {
         atomic_store(&r->failed, 1);
         return;
     }
     for (size_t k = 0; k < m; ++k) out[k] = *x < *y ? *x++ : *y++;
     memcpy(r->e->list[a], out, sizeof(uint64_t) * m);
-    kd_block_give(out, out_bytes);
+    free(out);
     r->e->list[a][m] = UINT64_MAX;
     r->e->count[a] = m;
 }
@@ -338,7 +327,7 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
     as_parallel_run(threads < 2 ? 1 : (threads < 3 * ROOT_HALVES ? threads : 3 * ROOT_HALVES), root_sort_half, &r);
     if (!atomic_load(&r.failed)) for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
     if (atomic_load(&r.failed)) {
-        events_free(e);
+        free(e);
         return NULL;
     }
     return e;
@@ -620,8 +609,8 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratc
     out[1] = cj.e[1];
     return 1;
 fail:
-    events_free(cj.e[0]);
-    events_free(cj.e[1]);
+    free(cj.e[0]);
+    free(cj.e[1]);
     out[0] = out[1] = NULL;
     return 0;
 }
@@ -1353,12 +1342,12 @@ int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_
     sah_events *e = sah_root_events(&c, refs, n);
     if (!e) return -1;
     const int chosen = sah_choose(&c, e, refs, n, box, 0, out);
-    events_free(e);
+    free(e);
     return chosen;
 }
 
 as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
 {
-    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, events_free};
+    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, free};
     return kd_build(mesh, args, &ops, s);
 }

@@ -28,7 +28,7 @@ static size_t huge_rounded(size_t bytes) { return (bytes + AS_HUGE_PAGE - 1) / A
 
 static void *fresh_block(size_t bytes, int huge)
 {
-    if (!huge) return aligned_alloc(64, (bytes + 63) / 64 * 64);
+    if (!huge) return malloc(bytes);
     const size_t rounded = huge_rounded(bytes);
     void *p = aligned_alloc(AS_HUGE_PAGE, rounded);
 #ifdef MADV_HUGEPAGE
@@ -48,15 +48,11 @@ static void *fresh_block(size_t bytes, int huge)
  * committed again. At most AS_BLOCKS_KEPT blocks and AS_BLOCKS_KEPT_BYTES
  * bytes are kept, counted at the sizes given back (a reused block may be up
  * to twice its taker's request, which is what comes back), the oldest freed
- * first. Blocks of 1 MB and more are kept: glibc gives freed blocks of
- * that size back to the kernel too (above its mmap threshold, or trimmed
- * off a thread's heap), and a 70,000-triangle KD build took some 2,000 page
- * faults in every build, 880 with them kept; smaller ones are left to
- * malloc. Only blocks of AS_HUGE_MIN_BYTES and more are huge. */
+ * first; blocks under AS_BLOCK_MIN_BYTES
+ * are left to malloc, which reuses them by itself. */
 #define AS_BLOCKS_KEPT 16
 #define AS_BLOCKS_KEPT_BYTES ((size_t)512 << 20)
-#define AS_BLOCK_MIN_BYTES ((size_t)1 << 20)
-#define AS_HUGE_MIN_BYTES ((size_t)4 << 20)
+#define AS_BLOCK_MIN_BYTES ((size_t)4 << 20)
 
 static struct {
     pthread_mutex_t lock;
@@ -68,7 +64,6 @@ static struct {
 void *as_block_take(size_t bytes, int huge, const char *what)
 {
     if (!bytes) bytes = 1;
-    huge = huge && bytes >= AS_HUGE_MIN_BYTES;
     void *p = NULL;
     if (bytes >= AS_BLOCK_MIN_BYTES) {
         /* The smallest kept block that holds `bytes` and is at most twice
@@ -87,7 +82,7 @@ void *as_block_take(size_t bytes, int huge, const char *what)
         }
         pthread_mutex_unlock(&kept.lock);
     }
-    if (!p) p = fresh_block(bytes, huge);
+    if (!p) p = fresh_block(bytes, huge && bytes >= AS_BLOCK_MIN_BYTES);
     if (!p) as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
     return p;
 }
@@ -95,8 +90,7 @@ void *as_block_take(size_t bytes, int huge, const char *what)
 void as_block_give(void *p, size_t bytes, int huge)
 {
     if (!p) return;
-    huge = huge && bytes >= AS_HUGE_MIN_BYTES;
-    /* Below AS_HUGE_MIN_BYTES as_block_take took no huge block. */
+    /* Below AS_BLOCK_MIN_BYTES as_aligned_alloc took no huge block. */
     if (bytes < AS_BLOCK_MIN_BYTES || bytes > AS_BLOCKS_KEPT_BYTES) {
         free(p);
         return;
