@@ -685,26 +685,69 @@ typedef struct sweep_prices {
     float face, rim, lo, hi, ct, ci;
 } sweep_prices;
 
+/* The single-precision cost of a plane at pos with nl0 references below,
+ * nr0 above and p_eq in it (the lower of the two sides for those). It only
+ * decides which planes are priced exactly; the exact price is
+ * price_plane_exactly's. */
+static inline float price_plane(float pos, uint32_t nl0, uint32_t nr0, uint32_t p_eq, const sweep_prices *sp)
+{
+    const float al = sp->face + sp->rim * (pos - sp->lo), ar = sp->face + sp->rim * (sp->hi - pos);
+    const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
+    const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
+    const float lambda_r = (nl0 == 0 || nr == 0) ? 0.8f : 1.0f;
+    const float cost_l = lambda_l * (sp->ct + sp->ci * (al * (float)nl + ar * (float)nr0));
+    const float cost_r = lambda_r * (sp->ct + sp->ci * (al * (float)nl0 + ar * (float)nr));
+    return cost_l < cost_r ? cost_l : cost_r;
+}
+
+#if defined(__SSE2__)
+/* price_plane for four planes, each step the scalar form's in the same
+ * order (SSE2 has no fused multiply-add, and neither has the scalar code),
+ * so the costs are the same floats. */
+static inline __m128 price_planes4(__m128 pos, __m128i nl0, __m128i nr0, __m128i p_eq, const sweep_prices *sp)
+{
+    const __m128i zero = _mm_setzero_si128();
+    const __m128 bonus = _mm_set1_ps(0.8f), one = _mm_set1_ps(1.0f);
+    const __m128 face = _mm_set1_ps(sp->face), rim = _mm_set1_ps(sp->rim), ct = _mm_set1_ps(sp->ct), ci = _mm_set1_ps(sp->ci);
+    const __m128i nl = _mm_add_epi32(nl0, p_eq), nr = _mm_add_epi32(nr0, p_eq);
+    const __m128 al = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(pos, _mm_set1_ps(sp->lo))));
+    const __m128 ar = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(_mm_set1_ps(sp->hi), pos)));
+    const __m128i empty_l = _mm_or_si128(_mm_cmpeq_epi32(nl, zero), _mm_cmpeq_epi32(nr0, zero));
+    const __m128i empty_r = _mm_or_si128(_mm_cmpeq_epi32(nl0, zero), _mm_cmpeq_epi32(nr, zero));
+    const __m128 lambda_l = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_l), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_l), one));
+    const __m128 lambda_r = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_r), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_r), one));
+    const __m128 cost_l = _mm_mul_ps(
+        lambda_l, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl)), _mm_mul_ps(ar, _mm_cvtepi32_ps(nr0))))));
+    const __m128 cost_r = _mm_mul_ps(
+        lambda_r, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl0)), _mm_mul_ps(ar, _mm_cvtepi32_ps(nr))))));
+    return _mm_min_ps(cost_l, cost_r);
+}
+
+/* The lowest of four costs. */
+static inline float lowest4(__m128 v)
+{
+    v = _mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(1, 0, 3, 2)));
+    v = _mm_min_ps(v, _mm_shuffle_ps(v, v, _MM_SHUFFLE(2, 3, 0, 1)));
+    return _mm_cvtss_f32(v);
+}
+#endif
+
 /* Pass 2 of sweep_range: the single-precision cost of groups 1 .. k-1 of g
  * into g->cost (infinite for planes on the node's faces), and the lowest. */
 static float price_groups(sweep_chunk *g, size_t k, const sweep_prices *sp)
 {
 #if defined(__SSE2__)
-    /* Four groups at a time, each step the scalar form's in the same order
-     * (SSE2 has no fused multiply-add, and neither has the scalar code), so
-     * the costs are the same floats. The groups past the last are copies of
-     * it on the low face, so they price as infinite. */
+    /* Four groups at a time. The groups past the last are copies of it on
+     * the low face, so they price as infinite. */
     for (size_t j = 0; j < 3; ++j) {
         g->key_events[k + j] = ((uint64_t)sp->key_lo << 32) | (uint32_t)g->key_events[k - 1];
         g->counts[k + j] = g->counts[k - 1];
     }
-    const __m128i sign = _mm_set1_epi32((int)0x80000000u), ones = _mm_set1_epi32(-1), zero = _mm_setzero_si128();
+    const __m128i sign = _mm_set1_epi32((int)0x80000000u), ones = _mm_set1_epi32(-1);
     const __m128i np_total = _mm_set1_epi32((int)sp->np_total), p_total = _mm_set1_epi32((int)sp->p_total);
     const __m128i key_lo = _mm_xor_si128(_mm_set1_epi32((int)sp->key_lo), sign);
     const __m128i key_hi = _mm_xor_si128(_mm_set1_epi32((int)sp->key_hi), sign);
-    const __m128 face = _mm_set1_ps(sp->face), rim = _mm_set1_ps(sp->rim), lo = _mm_set1_ps(sp->lo);
-    const __m128 hi = _mm_set1_ps(sp->hi), ct = _mm_set1_ps(sp->ct), ci = _mm_set1_ps(sp->ci);
-    const __m128 bonus = _mm_set1_ps(0.8f), one = _mm_set1_ps(1.0f), inf = _mm_set1_ps(INFINITY);
+    const __m128 inf = _mm_set1_ps(INFINITY);
     __m128 low = inf;
 #define LOW_HALVES(a, b) _mm_castps_si128(_mm_shuffle_ps(_mm_castsi128_ps(a), _mm_castsi128_ps(b), _MM_SHUFFLE(2, 0, 2, 0)))
 #define HIGH_HALVES(a, b) _mm_castps_si128(_mm_shuffle_ps(_mm_castsi128_ps(a), _mm_castsi128_ps(b), _MM_SHUFFLE(3, 1, 3, 1)))
@@ -726,55 +769,32 @@ static float price_groups(sweep_chunk *g, size_t k, const sweep_prices *sp)
         const __m128i nl0 = _mm_add_epi32(_mm_sub_epi32(events_before, ends_before), s_eq);
         const __m128i nr0 =
             _mm_add_epi32(_mm_add_epi32(_mm_sub_epi32(np_total, ends), _mm_sub_epi32(p_total, planars)), e_eq);
-        const __m128i nl = _mm_add_epi32(nl0, p), nr = _mm_add_epi32(nr0, p);
         /* key_float: the bits of a negative position are the key's
          * complement, those of a positive one the key without its top bit. */
         const __m128i negative = _mm_srai_epi32(key, 31);
         const __m128 pos = _mm_castsi128_ps(_mm_or_si128(_mm_and_si128(negative, _mm_andnot_si128(sign, key)),
                                                          _mm_andnot_si128(negative, _mm_xor_si128(key, ones))));
-        const __m128 al = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(pos, lo)));
-        const __m128 ar = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(hi, pos)));
-        const __m128i empty_l = _mm_or_si128(_mm_cmpeq_epi32(nl, zero), _mm_cmpeq_epi32(nr0, zero));
-        const __m128i empty_r = _mm_or_si128(_mm_cmpeq_epi32(nl0, zero), _mm_cmpeq_epi32(nr, zero));
-        const __m128 lambda_l = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_l), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_l), one));
-        const __m128 lambda_r = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_r), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_r), one));
-        const __m128 cost_l = _mm_mul_ps(
-            lambda_l, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl)),
-                                                               _mm_mul_ps(ar, _mm_cvtepi32_ps(nr0))))));
-        const __m128 cost_r = _mm_mul_ps(
-            lambda_r, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl0)),
-                                                               _mm_mul_ps(ar, _mm_cvtepi32_ps(nr))))));
         const __m128i signed_key = _mm_xor_si128(key, sign);
         const __m128 inside =
             _mm_castsi128_ps(_mm_and_si128(_mm_cmpgt_epi32(signed_key, key_lo), _mm_cmplt_epi32(signed_key, key_hi)));
-        const __m128 cost = _mm_or_ps(_mm_and_ps(inside, _mm_min_ps(cost_l, cost_r)), _mm_andnot_ps(inside, inf));
+        const __m128 cost =
+            _mm_or_ps(_mm_and_ps(inside, price_planes4(pos, nl0, nr0, p, sp)), _mm_andnot_ps(inside, inf));
         _mm_storeu_ps(&g->cost[q], cost);
         low = _mm_min_ps(low, cost);
     }
 #undef LOW_HALVES
 #undef HIGH_HALVES
-    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(1, 0, 3, 2)));
-    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(2, 3, 0, 1)));
-    return _mm_cvtss_f32(low);
+    return lowest4(low);
 #else
+    float low = INFINITY;
     for (size_t q = 1; q < k; ++q) {
         const uint32_t key = (uint32_t)(g->key_events[q] >> 32);
-        const float pos = key_float(key);
         uint32_t nl0, nr0, p_eq;
         group_sides(g, q, sp->np_total, sp->p_total, &nl0, &nr0, &p_eq);
-        const float al = sp->face + sp->rim * (pos - sp->lo), ar = sp->face + sp->rim * (sp->hi - pos);
-        const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
-        const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
-        const float lambda_r = (nl0 == 0 || nr == 0) ? 0.8f : 1.0f;
-        const float cost_l = lambda_l * (sp->ct + sp->ci * (al * (float)nl + ar * (float)nr0));
-        const float cost_r = lambda_r * (sp->ct + sp->ci * (al * (float)nl0 + ar * (float)nr));
-        const float cost = cost_l < cost_r ? cost_l : cost_r;
-        g->cost[q] = (key > sp->key_lo && key < sp->key_hi) ? cost : INFINITY;
+        g->cost[q] = (key > sp->key_lo && key < sp->key_hi) ? price_plane(key_float(key), nl0, nr0, p_eq, sp) : INFINITY;
+        low = g->cost[q] < low ? g->cost[q] : low;
     }
-    float low[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
-    for (size_t q = 1; q < k; ++q) low[q & 3] = g->cost[q] < low[q & 3] ? g->cost[q] : low[q & 3];
-    const float low01 = low[0] < low[1] ? low[0] : low[1], low23 = low[2] < low[3] ? low[2] : low[3];
-    return low01 < low23 ? low01 : low23;
+    return low;
 #endif
 }
 
@@ -786,25 +806,34 @@ typedef struct sweep_best {
     uint32_t count[2];
 } sweep_best;
 
-/* Pass 3 of sweep_range for group q: its exact cost, in double precision,
- * unless its single-precision cost shows it cannot beat the best. */
-static inline void price_group_exactly(const sweep_chunk *g, size_t q, const sweep_prices *sp, double face, double rim,
-                                       double lo, double hi, double ct, double ci, int filter, sweep_best *b)
+/* What the exact price of a plane needs of its axis and node. */
+typedef struct exact_prices {
+    double face, rim, lo, hi, ct, ci;
+} exact_prices;
+
+/* Whether a plane of this cost at pos replaces the best: cheaper, or as
+ * cheap and lower. The sweep meets planes in increasing order, so there a
+ * plane replaces only a dearer one; the small nodes' chooser meets them in
+ * any order, and the rule gives it the sweep's plane. */
+static inline int plane_wins(const sweep_best *b, double cost, float pos)
 {
-    const uint32_t key = (uint32_t)(g->key_events[q] >> 32);
-    if (!(key > sp->key_lo && key < sp->key_hi) || (filter && !((double)g->cost[q] <= b->threshold))) return;
-    uint32_t nl0, nr0, p_eq;
-    group_sides(g, q, sp->np_total, sp->p_total, &nl0, &nr0, &p_eq);
-    const float pos = key_float(key);
-    const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
-    /* The group's planar triangles below first, then above (without any,
-     * both cost the same and the second is never lower). */
+    return cost < b->cost || (b->found && cost == b->cost && pos < b->pos);
+}
+
+/* The exact cost, in double precision, of the plane at pos with nl0
+ * references below, nr0 above and p_eq in it, those first below, then
+ * above (without any, both cost the same and the second is never lower),
+ * taken into b when it wins. */
+static inline void price_plane_exactly(float pos, uint32_t nl0, uint32_t nr0, uint32_t p_eq, const exact_prices *ep,
+                                       sweep_best *b)
+{
+    const double al = ep->face + ep->rim * ((double)pos - ep->lo), ar = ep->face + ep->rim * (ep->hi - (double)pos);
     const uint32_t nl = nl0 + p_eq;
     const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
-    const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
+    const double cost = lambda * (ep->ct + ep->ci * (al * nl + ar * nr0));
     /* The counts priced are the children's sizes: kept for the driver,
      * which then need not count them. */
-    if (cost < b->cost) {
+    if (plane_wins(b, cost, pos)) {
         b->cost = cost;
         b->pos = pos;
         b->planar_left = 1;
@@ -814,8 +843,8 @@ static inline void price_group_exactly(const sweep_chunk *g, size_t q, const swe
     }
     const uint32_t nr = nr0 + p_eq;
     const double lambda_r = (nl0 == 0 || nr == 0) ? 0.8 : 1.0;
-    const double cost_r = lambda_r * (ct + ci * (al * nl0 + ar * nr));
-    if (cost_r < b->cost) {
+    const double cost_r = lambda_r * (ep->ct + ep->ci * (al * nl0 + ar * nr));
+    if (plane_wins(b, cost_r, pos)) {
         b->cost = cost_r;
         b->pos = pos;
         b->planar_left = 0;
@@ -824,6 +853,49 @@ static inline void price_group_exactly(const sweep_chunk *g, size_t q, const swe
         b->found = 1;
     }
     if (b->cost * (1.0 + SWEEP_MARGIN) < b->threshold) b->threshold = b->cost * (1.0 + SWEEP_MARGIN);
+}
+
+/* The prices of planes on one axis of a node with half area `area`, in
+ * single precision (sp; its counts are the caller's) and exactly (ep);
+ * returns whether the single-precision price may filter the planes. */
+static inline int axis_prices(const float box[6], int axis, double area, double ct, double ci, sweep_prices *sp,
+                              exact_prices *ep)
+{
+    /* A side's half area is linear in the plane's position: the face across
+     * the axis plus the perimeter of that face times the side's length
+     * along it. */
+    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
+    const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
+    const double face = e1 * e2 / area, rim = (e1 + e2) / area;
+    *ep = (exact_prices){face, rim, box[axis], box[axis + 3], ct, ci};
+    sp->face = (float)face;
+    sp->rim = (float)rim;
+    sp->lo = box[axis];
+    sp->hi = box[axis + 3];
+    sp->ct = (float)ct;
+    sp->ci = (float)ci;
+    sp->key_lo = float_key(box[axis]);
+    sp->key_hi = float_key(box[axis + 3]);
+    /* The single-precision bound needs every term within float's normal
+     * range: the costs near 1, and a box not so thin along the axis that
+     * the perimeter term (1 / its width, at most) overflows. Each side's
+     * area term is at most 2, and a traversal cost of at least 1e-12 keeps
+     * a cost from being only a tiny area term (one side empty, the plane
+     * near a face), whose relative error in single precision has no bound.
+     * Otherwise every plane is priced exactly. */
+    return ci >= 1e-12 && ci <= 1e12 && ct >= 1e-12 && ct <= 1e12 && rim < 1e30;
+}
+
+/* Pass 3 of sweep_range for group q: its exact cost, unless its
+ * single-precision cost shows it cannot beat the best. */
+static inline void price_group_exactly(const sweep_chunk *g, size_t q, const sweep_prices *sp, const exact_prices *ep,
+                                       int filter, sweep_best *b)
+{
+    const uint32_t key = (uint32_t)(g->key_events[q] >> 32);
+    if (!(key > sp->key_lo && key < sp->key_hi) || (filter && !((double)g->cost[q] <= b->threshold))) return;
+    uint32_t nl0, nr0, p_eq;
+    group_sides(g, q, sp->np_total, sp->p_total, &nl0, &nr0, &p_eq);
+    price_plane_exactly(key_float(key), nl0, nr0, p_eq, ep, b);
 }
 
 /* Sweeps events [begin, end) of the axis's list, which start a group and
@@ -837,31 +909,10 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
     const uint64_t *ev = cj->e->list[axis];
     const size_t m = cj->e->count[axis];
     sweep_prices sp;
+    exact_prices ep;
+    const int filter = axis_prices(box, axis, area, ct, ci, &sp, &ep);
     sp.p_total = (uint32_t)(2 * (size_t)cj->e->n - m);
     sp.np_total = (uint32_t)(m - cj->e->n);
-    /* A side's half area is linear in the plane's position: the face across
-     * the axis plus the perimeter of that face times the side's length
-     * along it. */
-    const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
-    const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
-    const double face = e1 * e2 / area, rim = (e1 + e2) / area;
-    const double lo = box[axis], hi = box[axis + 3];
-    sp.face = (float)face;
-    sp.rim = (float)rim;
-    sp.lo = box[axis];
-    sp.hi = box[axis + 3];
-    sp.ct = (float)ct;
-    sp.ci = (float)ci;
-    sp.key_lo = float_key(box[axis]);
-    sp.key_hi = float_key(box[axis + 3]);
-    /* The single-precision bound needs every term within float's normal
-     * range: the costs near 1, and a box not so thin along the axis that
-     * the perimeter term (1 / its width, at most) overflows. Each side's
-     * area term is at most 2, and a traversal cost of at least 1e-12 keeps
-     * a cost from being only a tiny area term (one side empty, the plane
-     * near a face), whose relative error in single precision has no bound.
-     * Otherwise every group is priced exactly. */
-    const int filter = ci >= 1e-12 && ci <= 1e12 && ct >= 1e-12 && ct <= 1e12 && rim < 1e30;
     sweep_best best = {cj->limit, cj->limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
     sweep_chunk g;
     uint64_t counts = ((uint64_t)planars0 << 32) | ends0;
@@ -895,12 +946,12 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
                 while (lanes) {
                     const size_t at = q + (size_t)__builtin_ctz(lanes);
                     lanes &= lanes - 1u;
-                    price_group_exactly(&g, at, &sp, face, rim, lo, hi, ct, ci, filter, &best);
+                    price_group_exactly(&g, at, &sp, &ep, filter, &best);
                 }
             }
         } else
 #endif
-            for (size_t q = 1; q < k; ++q) price_group_exactly(&g, q, &sp, face, rim, lo, hi, ct, ci, filter, &best);
+            for (size_t q = 1; q < k; ++q) price_group_exactly(&g, q, &sp, &ep, filter, &best);
         g.key_events[0] = g.key_events[k - 1];
         g.counts[0] = g.counts[k - 1];
     }
@@ -1051,24 +1102,11 @@ typedef struct small_axis {
 static inline __m128 price_small_four(small_axis *s, uint32_t j, __m128 pos, __m128i nl0, __m128i nr0, __m128i p_eq,
                                       const sweep_prices *sp)
 {
-    const __m128i zero = _mm_setzero_si128();
-    const __m128 bonus = _mm_set1_ps(0.8f), one = _mm_set1_ps(1.0f), inf = _mm_set1_ps(INFINITY);
-    const __m128 face = _mm_set1_ps(sp->face), rim = _mm_set1_ps(sp->rim), ct = _mm_set1_ps(sp->ct), ci = _mm_set1_ps(sp->ci);
-    const __m128i nl = _mm_add_epi32(nl0, p_eq), nr = _mm_add_epi32(nr0, p_eq);
-    const __m128 al = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(pos, _mm_set1_ps(sp->lo))));
-    const __m128 ar = _mm_add_ps(face, _mm_mul_ps(rim, _mm_sub_ps(_mm_set1_ps(sp->hi), pos)));
-    const __m128i empty_l = _mm_or_si128(_mm_cmpeq_epi32(nl, zero), _mm_cmpeq_epi32(nr0, zero));
-    const __m128i empty_r = _mm_or_si128(_mm_cmpeq_epi32(nl0, zero), _mm_cmpeq_epi32(nr, zero));
-    const __m128 lambda_l = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_l), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_l), one));
-    const __m128 lambda_r = _mm_or_ps(_mm_and_ps(_mm_castsi128_ps(empty_r), bonus), _mm_andnot_ps(_mm_castsi128_ps(empty_r), one));
-    const __m128 cost_l = _mm_mul_ps(
-        lambda_l, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl)), _mm_mul_ps(ar, _mm_cvtepi32_ps(nr0))))));
-    const __m128 cost_r = _mm_mul_ps(
-        lambda_r, _mm_add_ps(ct, _mm_mul_ps(ci, _mm_add_ps(_mm_mul_ps(al, _mm_cvtepi32_ps(nl0)), _mm_mul_ps(ar, _mm_cvtepi32_ps(nr))))));
+    const __m128 inf = _mm_set1_ps(INFINITY);
     /* Lanes past the last candidate price as infinite. */
     const __m128 real = _mm_castsi128_ps(
         _mm_cmplt_epi32(_mm_add_epi32(_mm_set1_epi32((int)j), _mm_set_epi32(3, 2, 1, 0)), _mm_set1_epi32((int)s->n_cand)));
-    const __m128 cost = _mm_or_ps(_mm_and_ps(real, _mm_min_ps(cost_l, cost_r)), _mm_andnot_ps(real, inf));
+    const __m128 cost = _mm_or_ps(_mm_and_ps(real, price_planes4(pos, nl0, nr0, p_eq, sp)), _mm_andnot_ps(real, inf));
     _mm_storeu_ps(&s->cost[j], cost);
     _mm_storeu_si128((__m128i *)&s->nl0[j], nl0);
     _mm_storeu_si128((__m128i *)&s->nr0[j], nr0);
@@ -1119,9 +1157,7 @@ static float price_small_axis(small_axis *s, const sweep_prices *sp)
         low = _mm_min_ps(low, price_small_four(s, j, pos_a, nl0_a, nr0_a, p_eq_a, sp));
         low = _mm_min_ps(low, price_small_four(s, j + 4, pos_b, nl0_b, nr0_b, p_eq_b, sp));
     }
-    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(1, 0, 3, 2)));
-    low = _mm_min_ps(low, _mm_shuffle_ps(low, low, _MM_SHUFFLE(2, 3, 0, 1)));
-    return _mm_cvtss_f32(low);
+    return lowest4(low);
 #else
     float low = INFINITY;
     for (uint32_t j = 0; j < s->n_cand; ++j) {
@@ -1136,13 +1172,7 @@ static float price_small_axis(small_axis *s, const sweep_prices *sp)
             nr0 += s->flat[k] > pos;
             p_eq += s->flat[k] == pos;
         }
-        const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
-        const float al = sp->face + sp->rim * (pos - sp->lo), ar = sp->face + sp->rim * (sp->hi - pos);
-        const float lambda_l = (nl == 0 || nr0 == 0) ? 0.8f : 1.0f;
-        const float lambda_r = (nl0 == 0 || nr == 0) ? 0.8f : 1.0f;
-        const float cost_l = lambda_l * (sp->ct + sp->ci * (al * (float)nl + ar * (float)nr0));
-        const float cost_r = lambda_r * (sp->ct + sp->ci * (al * (float)nl0 + ar * (float)nr));
-        s->cost[j] = cost_l < cost_r ? cost_l : cost_r;
+        s->cost[j] = price_plane(pos, nl0, nr0, p_eq, sp);
         s->nl0[j] = nl0;
         s->nr0[j] = nr0;
         s->in_plane[j] = p_eq;
@@ -1201,15 +1231,6 @@ static void small_axes_fill(small_axis axes[3], const kd_ref *refs, uint32_t n, 
     }
 }
 
-/* Whether a plane of this cost at pos replaces the best of a small node's
- * axis: cheaper, or as cheap and lower (the sweep keeps the first of the
- * lowest cost, and meets planes in increasing order). */
-static int small_plane_wins(const axis_best *b, double cost, float pos)
-{
-    if (!b->found) return cost < b->cost;
-    return cost < b->cost || (cost == b->cost && pos < b->pos);
-}
-
 static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, const float box[6], kd_split *out)
 {
     const double ct = c->args->cost_traversal, ci = c->args->cost_intersection, area = half_area(box);
@@ -1226,55 +1247,21 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
         const float box_lo = box[axis], box_hi = box[axis + 3];
         if (!(box_hi > box_lo)) continue;
         small_axis *const sa = &axes[axis];
-        const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
-        const double e1 = (double)box[a1 + 3] - box[a1], e2 = (double)box[a2 + 3] - box[a2];
-        const double face = e1 * e2 / area, rim = (e1 + e2) / area;
-        const double lo = box_lo, hi = box_hi;
         sweep_prices sp;
-        sp.face = (float)face;
-        sp.rim = (float)rim;
-        sp.lo = box_lo;
-        sp.hi = box_hi;
-        sp.ct = (float)ct;
-        sp.ci = (float)ci;
-        const int filter = ci >= 1e-12 && ci <= 1e12 && ct >= 1e-12 && ct <= 1e12 && rim < 1e30;
+        exact_prices ep;
+        const int filter = axis_prices(box, axis, area, ct, ci, &sp, &ep);
         /* The vector loop's lanes past the last candidate hold a number: a
          * NaN there would raise the invalid flag in the caller's
          * floating-point environment. */
         for (uint32_t j = sa->n_cand; j < sa->n_cand + 8; ++j) sa->cand[j] = box_lo;
         const double low = (double)price_small_axis(sa, &sp) * (1.0 + SWEEP_MARGIN);
-        double threshold = limit * (1.0 + SWEEP_MARGIN);
-        if (low < threshold) threshold = low;
-        axis_best b = {limit, 0.0f, 0, 0, {0, 0}};
+        sweep_best b = {limit, limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
+        if (low < b.threshold) b.threshold = low;
         for (uint32_t j = 0; j < sa->n_cand; ++j) {
-            if (filter && !((double)sa->cost[j] <= threshold)) continue;
+            if (filter && !((double)sa->cost[j] <= b.threshold)) continue;
             /* The sweep's position of a group: a key, in which -0 is 0. */
             const float pos = sa->cand[j] == 0.0f ? 0.0f : sa->cand[j];
-            const uint32_t nl0 = sa->nl0[j], nr0 = sa->nr0[j], p_eq = sa->in_plane[j];
-            const double al = face + rim * ((double)pos - lo), ar = face + rim * (hi - (double)pos);
-            const uint32_t nl = nl0 + p_eq, nr = nr0 + p_eq;
-            const double lambda = (nl == 0 || nr0 == 0) ? 0.8 : 1.0;
-            const double cost = lambda * (ct + ci * (al * nl + ar * nr0));
-            if (small_plane_wins(&b, cost, pos)) {
-                b.cost = cost;
-                b.pos = pos;
-                b.planar_left = 1;
-                b.count[0] = nl;
-                b.count[1] = nr0;
-                b.found = 1;
-            }
-            const double lambda_r = (nl0 == 0 || nr == 0) ? 0.8 : 1.0;
-            const double cost_r = lambda_r * (ct + ci * (al * nl0 + ar * nr));
-            /* At one position, below wins a tie. */
-            if (cost_r < b.cost || (b.found && cost_r == b.cost && pos < b.pos)) {
-                b.cost = cost_r;
-                b.pos = pos;
-                b.planar_left = 0;
-                b.count[0] = nl0;
-                b.count[1] = nr;
-                b.found = 1;
-            }
-            if (b.cost * (1.0 + SWEEP_MARGIN) < threshold) threshold = b.cost * (1.0 + SWEEP_MARGIN);
+            price_plane_exactly(pos, sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep, &b);
         }
         if (b.found && b.cost < best) {
             best = b.cost;
