@@ -79,7 +79,7 @@ as_error_t bvh_builder_init(bvh_builder *b, const as_mesh_t *mesh, const as_buil
     init_job job;
     memset(&job, 0, sizeof job);
     job.b = b;
-    job.chunks = mesh->triangle_count >= 65536 ? (unsigned)b->max_threads + 1 : 1;
+    job.chunks = mesh->triangle_count >= BVH_SPLIT_MT_MIN_PRIMS ? (unsigned)b->max_threads + 1 : 1;
     if (job.chunks > 256) job.chunks = 256;
     /* Each chunk's references start where the earlier chunks' end; the
      * mesh's bits count the degenerate triangles without a thread. */
@@ -405,7 +405,7 @@ bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, cons
 uint32_t bvh_piece_count(uint32_t count, unsigned threads)
 {
     uint32_t n = 8 * threads;
-    if (n > count / 16384) n = count / 16384;
+    if (n > count / 4096) n = count / 4096;
     return n ? n : 1;
 }
 
@@ -883,9 +883,15 @@ uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bv
     j->nwords = nwords;
     j->s = s;
     j->bits = bits;
-    as_parallel_run(threads, par_mark, j);
+    /* Pieces of at least 64 words, taken in turn (as_parallel_run inside
+     * the pool): a helper that arrives late takes fewer of them instead of
+     * holding the owner up for half the node. */
+    unsigned pieces = nwords / 64;
+    if (pieces < threads) pieces = threads;
+    if (pieces > 256) pieces = 256;
+    as_parallel_run(pieces, par_mark, j);
     side_pass sp = j->part[0];
-    for (unsigned c = 1; c < threads; ++c) {
+    for (unsigned c = 1; c < pieces; ++c) {
         sp.lclo = v4f_min(sp.lclo, j->part[c].lclo);
         sp.lchi = v4f_max(sp.lchi, j->part[c].lchi);
         sp.rclo = v4f_min(sp.rclo, j->part[c].rclo);
@@ -894,7 +900,7 @@ uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bv
     }
     j->nl = sp.nl;
     j->misplaced = count_misplaced(bits, sp.nl);
-    as_parallel_run(threads, par_swap, j);
+    as_parallel_run(pieces, par_swap, j);
     free(bits);
     free(j);
     finish_partition(node, s, &sp, left, right);
@@ -940,7 +946,7 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
     bvh_make_inner(b, t->node, ln, rn);
     const inplace_task lt = {l, ln, t->depth + 1}, rt = {r, rn, t->depth + 1};
     bvh_pending rp = {&rt, 0};
-    const int tracked = pool && rt.range.count >= BVH_PARALLEL_MIN_PRIMS && bvh_pending_push(pend, &rp);
+    const int tracked = pool && rt.range.count >= BVH_SHARE_MIN_PRIMS && bvh_pending_push(pend, &rp);
     inplace_subtree(pool, ctx, loc, pend, &lt);
     if (tracked) bvh_pending_pop(pend);
     if (!rp.given) inplace_subtree(pool, ctx, loc, pend, &rt);
@@ -1168,7 +1174,7 @@ static void walk_tasks(void *user, unsigned i, unsigned n)
 }
 
 /* Trees with fewer inner nodes than this are written by one thread. */
-#define BVH_WALK_MT_MIN_NODES 8192
+#define BVH_WALK_MT_MIN_NODES 2048
 
 /* Writes the tree under root into out and tris, filling st's counts and SAH
  * sums; on several threads when asked and the tree is big enough. Returns 0

@@ -15,6 +15,12 @@
 
 /* Subtrees larger than this may be built on another thread. */
 #define BVH_PARALLEL_MIN_PRIMS 4096
+/* The in-place builders (binned SAH, mid-cut) share right children down to
+ * this size: a thread that runs out of work waits until the other's
+ * subtree is done, and at 4,096 that wait (up to a 4,096-reference
+ * subtree's build) was a tenth of a 2-thread build of staircase2's 30,927
+ * triangles. A shared subtree costs a lock and a wake-up. */
+#define BVH_SHARE_MIN_PRIMS 1024
 #define BVH_MAX_BINS 256
 
 /* 32 bytes: a triangle's (possibly clipped, SBVH) box and its source index. */
@@ -171,7 +177,7 @@ unsigned bvh_split_threads(const bvh_builder *b, uint32_t count);
 /* A node's references in pieces that the threads of a split take in turn
  * from a shared counter, so that a helper thread which gets no core (its
  * build thread's partner is busy with a task of its own) delays nothing: the
- * others take its pieces. About 8 per thread, of at least 16,384. */
+ * others take its pieces. About 8 per thread, of at least 4,096. */
 uint32_t bvh_piece_count(uint32_t count, unsigned threads);
 
 /* Checks the arguments shared by every BVH builder, fills the references
@@ -352,8 +358,10 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
 uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
                                  bvh_range *right, unsigned threads);
 /* Nodes with at least this many references are split on several threads
- * when nothing else could run (bvh_split_threads). */
-#define BVH_SPLIT_MT_MIN_PRIMS 65536
+ * when nothing else could run (bvh_split_threads): below a scene of 65,536
+ * triangles (the earlier threshold) the first splits ran on one thread
+ * while the others waited. */
+#define BVH_SPLIT_MT_MIN_PRIMS 8192
 
 /* In-place builders: a split function partitions node's references and
  * fills `left` and `right` (node's range in two non-empty parts, in order,
