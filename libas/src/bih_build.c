@@ -33,6 +33,9 @@
 
 /* A right child of this many objects or more goes to a waiting thread. */
 #define PARALLEL_MIN_PRIMS 4096
+/* Leaves report the build's progress in steps of this share of it, not one
+ * by one on a counter that every thread writes. */
+#define REPORT_STEPS 1024
 /* Retries of the global heuristic before the list-half fallback. */
 #define MAX_EMPTY_RETRIES 128
 
@@ -77,14 +80,24 @@ static void report(bih_builder *b, uint64_t prims)
     pthread_mutex_unlock(&b->progress_lock);
 }
 
-static void make_leaf(bih_builder *b, int32_t node, uint32_t first, uint32_t count)
+/* Objects in leaves not yet reported: each task's own, reported once they
+ * make a step of the build (REPORT_STEPS) and when the task ends. */
+typedef struct bih_unreported {
+    uint64_t count, step;
+} bih_unreported;
+
+static void make_leaf(bih_builder *b, bih_unreported *u, int32_t node, uint32_t first, uint32_t count)
 {
     bih_tmp *n = &b->nodes[node];
     n->left = -1;
     n->axis = AS_BIH_LEAF;
     n->first = first;
     n->count = count;
-    report(b, count);
+    u->count += count;
+    if (u->count >= u->step) {
+        report(b, u->count);
+        u->count = 0;
+    }
 }
 
 static float centre(const bih_ref *r, int axis) { return 0.5f * (r->lo[axis] + r->hi[axis]); }
@@ -102,8 +115,8 @@ typedef struct bih_task {
     bih_boxes boxes;
 } bih_task;
 
-static void build_node(as_task_pool *pool, bih_builder *b, int32_t node, uint32_t first, uint32_t count,
-                       uint32_t depth, const bih_boxes *in);
+static void build_node(as_task_pool *pool, bih_builder *b, bih_unreported *u, int32_t node, uint32_t first,
+                       uint32_t count, uint32_t depth, const bih_boxes *in);
 
 static void centre_grow(const bih_ref *r, float lo[3], float hi[3])
 {
@@ -122,18 +135,28 @@ static void box_reset(float lo[3], float hi[3])
     }
 }
 
+/* A whole subtree on one thread of the pool, or the whole tree without
+ * one (pool NULL). */
+static void build_subtree(as_task_pool *pool, bih_builder *b, const bih_task *t)
+{
+    const uint64_t step = b->total / REPORT_STEPS;
+    bih_unreported u = {0, step ? step : 1};
+    build_node(pool, b, &u, t->node, t->first, t->count, t->depth, &t->boxes);
+    if (u.count) report(b, u.count);
+}
+
 static void build_task(as_task_pool *pool, void *task, void *user)
 {
     bih_task t;
     memcpy(&t, task, sizeof t);
-    build_node(pool, user, t.node, t.first, t.count, t.depth, &t.boxes);
+    build_subtree(pool, user, &t);
 }
 
-static void build_node(as_task_pool *pool, bih_builder *b, int32_t node, uint32_t first, uint32_t count,
-                       uint32_t depth, const bih_boxes *in)
+static void build_node(as_task_pool *pool, bih_builder *b, bih_unreported *u, int32_t node, uint32_t first,
+                       uint32_t count, uint32_t depth, const bih_boxes *in)
 {
     if (atomic_load(&b->cancelled) || count <= b->args->max_leaf_size || depth >= b->depth_limit) {
-        make_leaf(b, node, first, count);
+        make_leaf(b, u, node, first, count);
         return;
     }
     float cand_lo[3], cand_hi[3];
@@ -227,7 +250,7 @@ static void build_node(as_task_pool *pool, bih_builder *b, int32_t node, uint32_
     }
     const uint64_t l = atomic_fetch_add(&b->node_next, 2);
     if (l + 2 > b->node_capacity) { /* cannot happen: 2n - 1 nodes at most */
-        make_leaf(b, node, first, count);
+        make_leaf(b, u, node, first, count);
         return;
     }
     bih_tmp *n = &b->nodes[node];
@@ -240,8 +263,8 @@ static void build_node(as_task_pool *pool, bih_builder *b, int32_t node, uint32_
     const bih_task right = {(int32_t)l + 1, mid, rcount, depth + 1, rb};
     const int shared =
         pool && rcount >= PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &right);
-    build_node(pool, b, (int32_t)l, first, lcount, depth + 1, &lb);
-    if (!shared) build_node(pool, b, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
+    build_node(pool, b, u, (int32_t)l, first, lcount, depth + 1, &lb);
+    if (!shared) build_node(pool, b, u, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
 }
 
 #define INIT_CHUNKS 64
@@ -412,7 +435,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     const unsigned threads = as_thread_count(args->thread_count);
     if (threads < 2 || n < 2 * PARALLEL_MIN_PRIMS ||
         !as_task_pool_run(threads, sizeof first_task, &first_task, build_task, &b))
-        build_node(NULL, &b, 0, 0, n, 0, &root);
+        build_subtree(NULL, &b, &first_task);
     if (atomic_load(&b.cancelled)) {
         as_set_error(AS_ERROR_CANCELLED, "BIH build cancelled by the progress callback");
         goto fail;
@@ -422,10 +445,14 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     prims = as_aligned_alloc(sizeof(uint32_t) * (size_t)(n ? n : 1), "BIH PRIM");
     tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
     if (!out || !prims || !tris) goto fail;
-    memset(out, 0, sizeof(as_bih_node_t) * node_count);
     bih_flat f = {&b, out, 1, prims, 0, 0, 0, 0, args->cost_intersection, args->cost_traversal,
                   as_spatial_half_area(mesh->bounds_lo, mesh->bounds_hi), 0.0};
     flatten(&f, 0, 0, 0, mesh->bounds_lo, mesh->bounds_hi);
+    /* The walk writes all three fields of every node it reaches, which is
+     * every node made: only an unused tail, if any, is cleared (a pass of
+     * its own over the whole array cost a page fault and a write per 4 KB
+     * before the walk's own). */
+    if (f.out_count < node_count) memset(out + f.out_count, 0, sizeof(as_bih_node_t) * (node_count - f.out_count));
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_BIH, AS_LAYOUT_BIH, AS_BIH_LAYOUT_VERSION, AS_BUILDER_BIH);
     s->meta.node_count = f.out_count - f.leaves - f.empty_leaves;
