@@ -258,7 +258,10 @@ static void build_node(as_task_pool *pool, bih_builder *b, bih_unreported *u, in
     n->axis = (uint32_t)axis;
     n->clip[0] = lmax;
     n->clip[1] = rmin;
-    n->first = n->count = 0;
+    /* An inner node keeps its objects' range: the walk on several threads
+     * sizes subtrees by it. */
+    n->first = first;
+    n->count = count;
     const uint32_t lcount = mid - first, rcount = first + count - mid;
     const bih_task right = {(int32_t)l + 1, mid, rcount, depth + 1, rb};
     const int shared =
@@ -323,48 +326,221 @@ static void init_chunk(void *user, size_t ch)
 typedef struct bih_flat {
     const bih_builder *b;
     as_bih_node_t *out;
-    uint64_t out_count;
+    uint64_t out_count;      /* the next free slot */
     uint32_t *prims;
-    uint32_t prim_count;
+    uint64_t prim_count;
     uint64_t leaves, empty_leaves;
     uint32_t max_depth;
     double ci, ct, root_area, sah;
+    double *terms;           /* each node's SAH term by pre-order position, or NULL: summed into sah */
+    uint64_t term_pos;
 } bih_flat;
 
-/* Writes tmp node `t`, whose box is lo-hi, at out[o]; its children go to
- * two adjacent slots. The SAH cost is summed on the way, node by node in
- * the order of as_bih_sah_cost's walk (pre-order) and with its terms, so
- * the sum is that walk's to the last bit without a second walk. */
-static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth, const float lo[3], const float hi[3])
+/* A node's SAH term, the one as_bih_sah_cost adds for it. */
+static double flat_term(const bih_flat *f, const bih_tmp *n, const float lo[3], const float hi[3])
 {
-    const bih_tmp *n = &f->b->nodes[t];
-    as_bih_node_t *d = &f->out[o];
     const double rel = f->root_area > 0 ? as_spatial_half_area(lo, hi) / f->root_area : 1.0;
-    if (n->left < 0) {
-        d->info = (f->prim_count << 2) | AS_BIH_LEAF;
-        d->clip[0] = as_uint_as_float(n->count);
-        d->clip[1] = 0.0f;
-        for (uint32_t i = 0; i < n->count; ++i) f->prims[f->prim_count++] = f->b->refs[n->first + i].id;
-        if (n->count) f->leaves++; else f->empty_leaves++;
-        if (depth > f->max_depth) f->max_depth = depth;
-        f->sah += f->ci * n->count * rel;
-        return;
-    }
-    f->sah += f->ct * rel;
+    return n->left < 0 ? f->ci * n->count * rel : f->ct * rel;
+}
+
+static void flat_add(bih_flat *f, double term)
+{
+    if (f->terms) f->terms[f->term_pos++] = term;
+    else f->sah += term;
+}
+
+/* Writes leaf `n` at d. A leaf's PRIM entries are its objects' place in
+ * refs: the walk meets the leaves in the order of their ranges there. */
+static void flat_leaf(bih_flat *f, const bih_tmp *n, as_bih_node_t *d, uint32_t depth)
+{
+    d->info = (n->first << 2) | AS_BIH_LEAF;
+    d->clip[0] = as_uint_as_float(n->count);
+    d->clip[1] = 0.0f;
+    for (uint32_t i = 0; i < n->count; ++i) f->prims[n->first + i] = f->b->refs[n->first + i].id;
+    f->prim_count += n->count;
+    if (n->count) f->leaves++; else f->empty_leaves++;
+    if (depth > f->max_depth) f->max_depth = depth;
+}
+
+/* Writes inner node `n` at d with its children at the next two free slots
+ * (returned), and their boxes. */
+static uint64_t flat_inner(bih_flat *f, const bih_tmp *n, as_bih_node_t *d, const float lo[3], const float hi[3],
+                           float box[2][2][3])
+{
     const uint64_t c = f->out_count;
     f->out_count += 2;
     d->info = ((uint32_t)c << 2) | n->axis;
     d->clip[0] = n->clip[0];
     d->clip[1] = n->clip[1];
-    float llo[3], lhi[3], rlo[3], rhi[3];
-    memcpy(llo, lo, sizeof llo);
-    memcpy(lhi, hi, sizeof lhi);
-    memcpy(rlo, lo, sizeof rlo);
-    memcpy(rhi, hi, sizeof rhi);
-    if (n->clip[0] < lhi[n->axis]) lhi[n->axis] = n->clip[0];
-    if (n->clip[1] > rlo[n->axis]) rlo[n->axis] = n->clip[1];
-    flatten(f, n->left, c, depth + 1, llo, lhi);
-    flatten(f, n->left + 1, c + 1, depth + 1, rlo, rhi);
+    memcpy(box[0][0], lo, sizeof box[0][0]);
+    memcpy(box[0][1], hi, sizeof box[0][1]);
+    memcpy(box[1][0], lo, sizeof box[1][0]);
+    memcpy(box[1][1], hi, sizeof box[1][1]);
+    if (n->clip[0] < box[0][1][n->axis]) box[0][1][n->axis] = n->clip[0];
+    if (n->clip[1] > box[1][0][n->axis]) box[1][0][n->axis] = n->clip[1];
+    return c;
+}
+
+/* Writes tmp node `t`, whose box is lo-hi, at out[o]; its children go to
+ * two adjacent slots. The SAH terms come in the order of as_bih_sah_cost's
+ * walk (pre-order), so their sum is that walk's to the last bit without a
+ * second walk. */
+static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth, const float lo[3], const float hi[3])
+{
+    const bih_tmp *n = &f->b->nodes[t];
+    flat_add(f, flat_term(f, n, lo, hi));
+    if (n->left < 0) {
+        flat_leaf(f, n, &f->out[o], depth);
+        return;
+    }
+    float box[2][2][3];
+    const uint64_t c = flat_inner(f, n, &f->out[o], lo, hi, box);
+    flatten(f, n->left, c, depth + 1, box[0][0], box[0][1]);
+    flatten(f, n->left + 1, c + 1, depth + 1, box[1][0], box[1][1]);
+}
+
+/* The walk on several threads. The top of the tree is walked on one
+ * thread down to subtrees of at most `grain` objects; each such subtree's
+ * nodes take a range of slots and of pre-order positions that its size
+ * (counted first, on every thread) fixes, whatever is in it, so the
+ * subtrees are then written on every thread with the bytes and terms of
+ * one walk, and the terms added in pre-order afterwards. */
+typedef struct bih_flat_task {
+    int32_t t;
+    uint32_t depth;
+    uint64_t o, out_next, term_pos, size;
+    float lo[3], hi[3];
+    /* what writing it found */
+    uint64_t leaves, empty_leaves, prims;
+    uint32_t max_depth;
+    int bad;
+} bih_flat_task;
+
+typedef struct bih_flat_plan {
+    bih_flat *top;
+    uint32_t grain;
+    bih_flat_task *tasks;
+    size_t count, capacity;
+} bih_flat_plan;
+
+static uint64_t subtree_size(const bih_tmp *nodes, int32_t t)
+{
+    const bih_tmp *n = &nodes[t];
+    return n->left < 0 ? 1 : 1 + subtree_size(nodes, n->left) + subtree_size(nodes, n->left + 1);
+}
+
+/* Collects the subtrees of at most `grain` objects in pre-order; 0 when the
+ * list cannot grow. */
+static int plan_collect(bih_flat_plan *p, int32_t t)
+{
+    const bih_tmp *n = &p->top->b->nodes[t];
+    if (n->left < 0 || n->count <= p->grain) {
+        if (p->count == p->capacity) {
+            const size_t cap = p->capacity ? 2 * p->capacity : 256;
+            bih_flat_task *grown = realloc(p->tasks, sizeof *grown * cap);
+            if (!grown) return 0;
+            p->tasks = grown;
+            p->capacity = cap;
+        }
+        memset(&p->tasks[p->count], 0, sizeof p->tasks[0]);
+        p->tasks[p->count++].t = t;
+        return 1;
+    }
+    return plan_collect(p, n->left) && plan_collect(p, n->left + 1);
+}
+
+static void plan_size(void *user, size_t i)
+{
+    bih_flat_plan *p = user;
+    p->tasks[i].size = subtree_size(p->top->b->nodes, p->tasks[i].t);
+}
+
+/* The top walk: writes the nodes above the subtrees and gives each subtree
+ * its ranges, in the order plan_collect listed them (*next). */
+static void plan_top(bih_flat_plan *p, size_t *next, int32_t t, uint64_t o, uint32_t depth, const float lo[3],
+                     const float hi[3])
+{
+    bih_flat *f = p->top;
+    const bih_tmp *n = &f->b->nodes[t];
+    if (*next < p->count && p->tasks[*next].t == t) {
+        bih_flat_task *k = &p->tasks[(*next)++];
+        k->o = o;
+        k->depth = depth;
+        memcpy(k->lo, lo, sizeof k->lo);
+        memcpy(k->hi, hi, sizeof k->hi);
+        k->out_next = f->out_count;
+        k->term_pos = f->term_pos;
+        f->out_count += k->size - 1;
+        f->term_pos += k->size;
+        return;
+    }
+    flat_add(f, flat_term(f, n, lo, hi));
+    float box[2][2][3];
+    const uint64_t c = flat_inner(f, n, &f->out[o], lo, hi, box);
+    plan_top(p, next, n->left, c, depth + 1, box[0][0], box[0][1]);
+    plan_top(p, next, n->left + 1, c + 1, depth + 1, box[1][0], box[1][1]);
+}
+
+static void plan_write(void *user, size_t i)
+{
+    bih_flat_plan *p = user;
+    bih_flat_task *k = &p->tasks[i];
+    bih_flat f = *p->top;
+    f.out_count = k->out_next;
+    f.term_pos = k->term_pos;
+    f.prim_count = f.leaves = f.empty_leaves = 0;
+    f.max_depth = 0;
+    flatten(&f, k->t, k->o, k->depth, k->lo, k->hi);
+    k->leaves = f.leaves;
+    k->empty_leaves = f.empty_leaves;
+    k->prims = f.prim_count;
+    k->max_depth = f.max_depth;
+    k->bad = f.out_count != k->out_next + k->size - 1 || f.term_pos != k->term_pos + k->size;
+}
+
+/* Trees of fewer nodes than this are written on one thread. */
+#define FLAT_MT_MIN_NODES 16384
+
+/* Writes the whole tree (node_count nodes) into f; 0 when the walk's
+ * bookkeeping disagrees with the tree. */
+static int flatten_tree(bih_flat *f, uint64_t node_count, uint32_t n, unsigned threads, const float lo[3],
+                        const float hi[3])
+{
+    bih_flat_plan p = {f, 0, NULL, 0, 0};
+    if (threads > 1 && node_count >= FLAT_MT_MIN_NODES) {
+        f->terms = malloc(sizeof(double) * node_count);
+        /* About 32 subtrees per thread, so that the last one to finish
+         * leaves the others idle for little. */
+        p.grain = n / (32 * threads);
+        if (!f->terms || !plan_collect(&p, 0)) {
+            free(f->terms);
+            f->terms = NULL;
+            free(p.tasks);
+            p.tasks = NULL;
+        }
+    }
+    if (!f->terms) {
+        flatten(f, 0, 0, 0, lo, hi);
+        return f->out_count == node_count;
+    }
+    as_parallel_for(threads, p.count, plan_size, &p);
+    size_t next = 0;
+    plan_top(&p, &next, 0, 0, 0, lo, hi);
+    int ok = next == p.count && f->out_count == node_count && f->term_pos == node_count;
+    if (ok) as_parallel_for(threads, p.count, plan_write, &p);
+    for (size_t i = 0; ok && i < p.count; ++i) {
+        const bih_flat_task *k = &p.tasks[i];
+        f->leaves += k->leaves;
+        f->empty_leaves += k->empty_leaves;
+        f->prim_count += k->prims;
+        if (k->max_depth > f->max_depth) f->max_depth = k->max_depth;
+        ok = !k->bad;
+    }
+    for (uint64_t i = 0; ok && i < node_count; ++i) f->sah += f->terms[i];
+    free(f->terms);
+    f->terms = NULL;
+    free(p.tasks);
+    return ok;
 }
 
 as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
@@ -445,14 +621,16 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     prims = as_aligned_alloc(sizeof(uint32_t) * (size_t)(n ? n : 1), "BIH PRIM");
     tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
     if (!out || !prims || !tris) goto fail;
+    /* No clearing: the walk writes all three fields of every node made
+     * (flatten_tree checks that it met them all). */
     bih_flat f = {&b, out, 1, prims, 0, 0, 0, 0, args->cost_intersection, args->cost_traversal,
-                  as_spatial_half_area(mesh->bounds_lo, mesh->bounds_hi), 0.0};
-    flatten(&f, 0, 0, 0, mesh->bounds_lo, mesh->bounds_hi);
-    /* The walk writes all three fields of every node it reaches, which is
-     * every node made: only an unused tail, if any, is cleared (a pass of
-     * its own over the whole array cost a page fault and a write per 4 KB
-     * before the walk's own). */
-    if (f.out_count < node_count) memset(out + f.out_count, 0, sizeof(as_bih_node_t) * (node_count - f.out_count));
+                  as_spatial_half_area(mesh->bounds_lo, mesh->bounds_hi), 0.0, NULL, 0};
+    if (!flatten_tree(&f, node_count, n, threads, mesh->bounds_lo, mesh->bounds_hi) || f.prim_count != n) {
+        as_set_error(AS_ERROR_UNKNOWN, "BIH build bookkeeping: %llu nodes and %llu objects written, %llu and %u made",
+                     (unsigned long long)f.out_count, (unsigned long long)f.prim_count,
+                     (unsigned long long)node_count, n);
+        goto fail;
+    }
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_BIH, AS_LAYOUT_BIH, AS_BIH_LAYOUT_VERSION, AS_BUILDER_BIH);
     s->meta.node_count = f.out_count - f.leaves - f.empty_leaves;
