@@ -751,20 +751,27 @@ static void small_nodes_choose_the_sweeps_plane(void)
                 refs[i].hi[k] = h;
             }
         }
-        kd_split swept, counted;
+        /* The chooser as the build runs it here (AVX2 where the processor
+         * has it) and in its SSE2 form, each against the sweep. */
+        kd_split swept;
         memset(&swept, 0, sizeof swept);
-        memset(&counted, 0, sizeof counted);
-        const int r0 = kd_sah_choose_plane(&a, refs, n, box, 1, &swept);
-        const int r1 = kd_sah_choose_plane(&a, refs, n, box, 0, &counted);
-        int same = r0 == r1 && r0 >= 0;
-        if (same && r0 == 1)
-            same = swept.axis == counted.axis && memcmp(&swept.pos, &counted.pos, sizeof swept.pos) == 0 &&
-                   swept.planar_left == counted.planar_left && swept.count[0] == counted.count[0] &&
-                   swept.count[1] == counted.count[1];
-        if (!same && differ++ < 5)
-            fprintf(stderr, "  node %d (%u refs): sweep %d axis %d at %a below %d (%u, %u); counted %d axis %d at %a below %d (%u, %u)\n",
-                    it, n, r0, swept.axis, swept.pos, swept.planar_left, swept.count[0], swept.count[1], r1, counted.axis,
-                    counted.pos, counted.planar_left, counted.count[0], counted.count[1]);
+        const int r0 = kd_sah_choose_plane(&a, refs, n, box, KD_CHOOSE_SWEEP, &swept);
+        static const int forms[2] = {KD_CHOOSE_SMALL, KD_CHOOSE_SMALL_SSE2};
+        for (int f = 0; f < 2; ++f) {
+            kd_split counted;
+            memset(&counted, 0, sizeof counted);
+            const int r1 = kd_sah_choose_plane(&a, refs, n, box, forms[f], &counted);
+            int same = r0 == r1 && r0 >= 0;
+            if (same && r0 == 1)
+                same = swept.axis == counted.axis && memcmp(&swept.pos, &counted.pos, sizeof swept.pos) == 0 &&
+                       swept.planar_left == counted.planar_left && swept.count[0] == counted.count[0] &&
+                       swept.count[1] == counted.count[1];
+            if (!same && differ++ < 5)
+                fprintf(stderr, "  node %d (%u refs), %s form: sweep %d axis %d at %a below %d (%u, %u); counted %d axis %d at %a below %d (%u, %u)\n",
+                        it, n, f ? "SSE2" : "built", r0, swept.axis, swept.pos, swept.planar_left, swept.count[0],
+                        swept.count[1], r1, counted.axis, counted.pos, counted.planar_left, counted.count[0],
+                        counted.count[1]);
+        }
         split += r0 == 1;
         leaf += r0 == 0;
     }

@@ -936,7 +936,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
         }
     if (n == 0) memset(box, 0, sizeof box);
 
-    kd_ctx ctx = {args, mesh, ops, 0, tris};
+    kd_ctx ctx = {args, mesh, ops, 0, tris, 0};
     /* The default depth cap grows with log N (8 + 1.3 log2 N, the usual
      * rule), never beyond the traversal stack. */
     uint32_t cap = (uint32_t)(8.0 + 1.3 * log2((double)(n > 1 ? n : 1)));

@@ -103,6 +103,9 @@ typedef struct kd_ctx {
      * triangle's vertices from one 48-byte entry, not through the index
      * buffer from three places. */
     const as_tri4_t *tris;
+    /* The small nodes' chooser in its SSE2 form even where the processor
+     * has AVX2 (kd_sah_choose_plane's tests of both forms). */
+    int small_sse2_only;
 } kd_ctx;
 
 /* The box of a reference after clipping (kd_build.c): `old`'s box within
@@ -128,11 +131,14 @@ void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const flo
 
 /* The SAH builder's plane for a node of n references (in increasing id
  * order) inside box: chosen by sweeping the node's sorted event lists
- * (with_lists 1), or as a small node chooses it, from the references
- * themselves (0; n at most 32). Returns 1 with the plane, 0 when the node
- * is better a leaf, -1 when it cannot choose (out of memory, or too many
- * references for the second way). The two ways give the same plane. */
-int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_t n, const float box[6], int with_lists,
+ * (KD_CHOOSE_SWEEP), or as a small node chooses it, from the references
+ * themselves (n at most 32): in the form the build uses on this processor
+ * (KD_CHOOSE_SMALL: AVX2 where it has it) or in the SSE2 form
+ * (KD_CHOOSE_SMALL_SSE2). Returns 1 with the plane, 0 when the node is
+ * better a leaf, -1 when it cannot choose (out of memory, or too many
+ * references for a small node). Every way gives the same plane. */
+enum { KD_CHOOSE_SMALL = 0, KD_CHOOSE_SWEEP = 1, KD_CHOOSE_SMALL_SSE2 = 2 };
+int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_t n, const float box[6], int how,
                         kd_split *out);
 
 /* Builds the tree with `ops` and fills s (META and the KD-standard

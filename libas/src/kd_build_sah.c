@@ -1115,8 +1115,89 @@ static inline __m128 price_small_four(small_axis *s, uint32_t j, __m128 pos, __m
 }
 #endif
 
-static float price_small_axis(small_axis *s, const sweep_prices *sp)
+#if defined(__x86_64__) && defined(__GNUC__)
+#define KD_SMALL_AVX2 1
+#include <immintrin.h>
+/* price_small_axis with eight candidates per compare, on processors with
+ * AVX2 (chosen at run time): the counts are the same integers, and each
+ * price takes price_planes4's steps in its order without fused
+ * multiply-adds (the function may use AVX2, not FMA), so the costs are the
+ * same floats and the plane the same. About half of the small nodes'
+ * chooser is this loop. */
+__attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s, const sweep_prices *sp)
 {
+    __m256 lo8[SMALL_NODE_REFS], hi8[SMALL_NODE_REFS], flat8[SMALL_NODE_REFS];
+    for (uint32_t k = 0; k < s->n_lo; ++k) {
+        lo8[k] = _mm256_set1_ps(s->lo[k]);
+        hi8[k] = _mm256_set1_ps(s->hi[k]);
+    }
+    for (uint32_t k = 0; k < s->n_flat; ++k) flat8[k] = _mm256_set1_ps(s->flat[k]);
+    const __m256i zero = _mm256_setzero_si256();
+    const __m256 inf = _mm256_set1_ps(INFINITY), bonus = _mm256_set1_ps(0.8f), one = _mm256_set1_ps(1.0f);
+    const __m256 face = _mm256_set1_ps(sp->face), rim = _mm256_set1_ps(sp->rim), ct = _mm256_set1_ps(sp->ct),
+                 ci = _mm256_set1_ps(sp->ci), lo = _mm256_set1_ps(sp->lo), hi = _mm256_set1_ps(sp->hi);
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), n_cand = _mm256_set1_epi32((int)s->n_cand);
+    __m256 low = inf;
+    for (uint32_t j = 0; j < s->n_cand; j += 8) {
+        const __m256 pos = _mm256_loadu_ps(&s->cand[j]);
+        __m256i nl0 = zero, nr0 = zero, p_eq = zero;
+        for (uint32_t k = 0; k < s->n_lo; ++k) {
+            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(lo8[k], pos, _CMP_LE_OQ)));
+            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(hi8[k], pos, _CMP_GE_OQ)));
+        }
+        for (uint32_t k = 0; k < s->n_flat; ++k) {
+            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(flat8[k], pos, _CMP_LT_OQ)));
+            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(flat8[k], pos, _CMP_GT_OQ)));
+            p_eq = _mm256_sub_epi32(p_eq, _mm256_castps_si256(_mm256_cmp_ps(flat8[k], pos, _CMP_EQ_OQ)));
+        }
+        /* price_planes4's steps. */
+        const __m256i nl = _mm256_add_epi32(nl0, p_eq), nr = _mm256_add_epi32(nr0, p_eq);
+        const __m256 al = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(pos, lo)));
+        const __m256 ar = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(hi, pos)));
+        const __m256i empty_l = _mm256_or_si256(_mm256_cmpeq_epi32(nl, zero), _mm256_cmpeq_epi32(nr0, zero));
+        const __m256i empty_r = _mm256_or_si256(_mm256_cmpeq_epi32(nl0, zero), _mm256_cmpeq_epi32(nr, zero));
+        const __m256 lambda_l = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_l));
+        const __m256 lambda_r = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_r));
+        const __m256 cost_l = _mm256_mul_ps(
+            lambda_l, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl)),
+                                                                         _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr0))))));
+        const __m256 cost_r = _mm256_mul_ps(
+            lambda_r, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl0)),
+                                                                         _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr))))));
+        /* Lanes past the last candidate price as infinite. */
+        const __m256 real =
+            _mm256_castsi256_ps(_mm256_cmpgt_epi32(n_cand, _mm256_add_epi32(_mm256_set1_epi32((int)j), lane)));
+        const __m256 cost = _mm256_blendv_ps(inf, _mm256_min_ps(cost_l, cost_r), real);
+        _mm256_storeu_ps(&s->cost[j], cost);
+        _mm256_storeu_si256((__m256i *)&s->nl0[j], nl0);
+        _mm256_storeu_si256((__m256i *)&s->nr0[j], nr0);
+        _mm256_storeu_si256((__m256i *)&s->in_plane[j], p_eq);
+        low = _mm256_min_ps(low, cost);
+    }
+    const __m128 four = _mm_min_ps(_mm256_castps256_ps128(low), _mm256_extractf128_ps(low, 1));
+    return lowest4(four);
+}
+
+/* Whether this processor runs the AVX2 form (asked once). */
+static int small_avx2(void)
+{
+    static atomic_int known = 0; /* 0: not asked, 1: no, 2: yes */
+    int k = atomic_load_explicit(&known, memory_order_relaxed);
+    if (!k) {
+        __builtin_cpu_init();
+        k = __builtin_cpu_supports("avx2") ? 2 : 1;
+        atomic_store_explicit(&known, k, memory_order_relaxed);
+    }
+    return k == 2;
+}
+#endif
+
+static float price_small_axis(small_axis *s, const sweep_prices *sp, int sse2_only)
+{
+#if defined(KD_SMALL_AVX2)
+    if (!sse2_only && small_avx2()) return price_small_axis_avx2(s, sp);
+#endif
+    (void)sse2_only;
 #if defined(__SSE2__)
     /* Each reference's bounds in every lane, the references with extent
      * padded to an even count with one that is on no side. */
@@ -1254,7 +1335,7 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
          * NaN there would raise the invalid flag in the caller's
          * floating-point environment. */
         for (uint32_t j = sa->n_cand; j < sa->n_cand + 8; ++j) sa->cand[j] = box_lo;
-        const double low = (double)price_small_axis(sa, &sp) * (1.0 + SWEEP_MARGIN);
+        const double low = (double)price_small_axis(sa, &sp, c->small_sse2_only) * (1.0 + SWEEP_MARGIN);
         sweep_best b = {limit, limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
         if (low < b.threshold) b.threshold = low;
         for (uint32_t j = 0; j < sa->n_cand; ++j) {
@@ -1315,7 +1396,7 @@ static int sah_choose(const kd_ctx *c, void *state, const kd_ref *refs, uint32_t
     return found;
 }
 
-int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_t n, const float box[6], int with_lists,
+int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_t n, const float box[6], int how,
                         kd_split *out)
 {
     as_mesh_t mesh;
@@ -1325,7 +1406,8 @@ int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_
     memset(&c, 0, sizeof c);
     c.args = args;
     c.mesh = &mesh;
-    if (!with_lists) return n <= SMALL_NODE_REFS ? sah_choose(&c, NULL, refs, n, box, 0, out) : -1;
+    c.small_sse2_only = how == KD_CHOOSE_SMALL_SSE2;
+    if (how != KD_CHOOSE_SWEEP) return n <= SMALL_NODE_REFS ? sah_choose(&c, NULL, refs, n, box, 0, out) : -1;
     sah_events *e = sah_root_events(&c, refs, n);
     if (!e) return -1;
     const int chosen = sah_choose(&c, e, refs, n, box, 0, out);
