@@ -819,7 +819,14 @@ typedef struct kd_emit {
     uint64_t node_next, prim_next;
     uint32_t leaf_next;
     double ct, ci, root_area, sah; /* the SAH cost, summed as as_kd_sah_cost sums it */
+    double *terms;                 /* or each node's term by its index (pre-order), NULL: summed */
 } kd_emit;
+
+static void emit_term(kd_emit *e, uint64_t me, double term)
+{
+    if (e->terms) e->terms[me] = term;
+    else e->sah += term;
+}
 
 /* Writes the subtree of t (box `box`) in preorder, the left child first, and
  * adds its SAH cost in that order: the sum as_kd_sah_cost makes from the
@@ -829,7 +836,7 @@ static void emit(const kd_tmp *t, const float box[6], kd_emit *e)
     const uint64_t me = e->node_next++;
     const double ratio = e->root_area > 0 ? as_spatial_half_area(box, box + 3) / e->root_area : 1.0;
     if (!t->child[0]) {
-        e->sah += e->ci * t->count * ratio;
+        emit_term(e, me, e->ci * t->count * ratio);
         e->nodes[me].word0 = (uint32_t)e->prim_next;
         e->nodes[me].word1 = (e->leaf_next++ << 2) | AS_KD_LEAF_TAG;
         e->prim[e->prim_next++] = t->count;
@@ -837,7 +844,7 @@ static void emit(const kd_tmp *t, const float box[6], kd_emit *e)
         e->prim_next += t->count;
         return;
     }
-    e->sah += e->ct * ratio;
+    emit_term(e, me, e->ct * ratio);
     float child_box[6];
     memcpy(child_box, box, sizeof child_box);
     child_box[t->axis + 3] = t->pos;
@@ -847,6 +854,161 @@ static void emit(const kd_tmp *t, const float box[6], kd_emit *e)
     child_box[t->axis + 3] = box[t->axis + 3];
     child_box[t->axis] = t->pos;
     emit(t->child[1], child_box, e);
+}
+
+/* The write on several threads. The tree is cut at one depth, chosen so
+ * that it holds about 64 subtrees per thread (or at the leaves above it);
+ * each subtree's size (nodes, PRIM entries, leaves) is counted on every
+ * thread, fixing where its nodes, entries and leaf numbers go whatever is in
+ * it; the nodes above the cut are written on one thread, the subtrees on
+ * every thread, and the SAH terms, stored by node index (which is the
+ * pre-order position), added in that order afterwards: the bytes and the
+ * sum of one walk. */
+typedef struct kd_emit_part {
+    const kd_tmp *t;
+    float box[6];
+    uint64_t nodes, prims;     /* the subtree's size */
+    uint32_t leaves;
+    uint64_t node_at, prim_at; /* where it goes */
+    uint32_t leaf_at;
+    int bad;
+} kd_emit_part;
+
+typedef struct kd_emit_plan {
+    kd_emit *top;
+    uint32_t cut;              /* the depth of the subtrees' roots */
+    kd_emit_part *parts;
+    size_t count, capacity;
+} kd_emit_plan;
+
+static void subtree_size(const kd_tmp *t, kd_emit_part *p)
+{
+    if (!t->child[0]) {
+        p->nodes++;
+        p->prims += 1 + (uint64_t)t->count;
+        p->leaves++;
+        return;
+    }
+    p->nodes++;
+    subtree_size(t->child[0], p);
+    subtree_size(t->child[1], p);
+}
+
+/* The subtrees at the cut, and the leaves above it, in pre-order; 0 when
+ * the list cannot grow. */
+static int plan_parts(kd_emit_plan *p, const kd_tmp *t, uint32_t depth)
+{
+    if (!t->child[0] || depth == p->cut) {
+        if (p->count == p->capacity) {
+            const size_t cap = p->capacity ? 2 * p->capacity : 256;
+            kd_emit_part *grown = realloc(p->parts, sizeof *grown * cap);
+            if (!grown) return 0;
+            p->parts = grown;
+            p->capacity = cap;
+        }
+        memset(&p->parts[p->count], 0, sizeof p->parts[0]);
+        p->parts[p->count++].t = t;
+        return 1;
+    }
+    return plan_parts(p, t->child[0], depth + 1) && plan_parts(p, t->child[1], depth + 1);
+}
+
+static void part_size(void *user, size_t i)
+{
+    kd_emit_plan *p = user;
+    subtree_size(p->parts[i].t, &p->parts[i]);
+}
+
+/* emit above the cut: each part gets its box and its places, in the order
+ * plan_parts listed them (*next). */
+static void emit_top(kd_emit_plan *p, size_t *next, const kd_tmp *t, const float box[6])
+{
+    kd_emit *e = p->top;
+    if (*next < p->count && p->parts[*next].t == t) {
+        kd_emit_part *k = &p->parts[(*next)++];
+        memcpy(k->box, box, sizeof k->box);
+        k->node_at = e->node_next;
+        k->prim_at = e->prim_next;
+        k->leaf_at = e->leaf_next;
+        e->node_next += k->nodes;
+        e->prim_next += k->prims;
+        e->leaf_next += k->leaves;
+        return;
+    }
+    /* An inner node above the cut (the parts hold every leaf). */
+    const uint64_t me = e->node_next++;
+    const double ratio = e->root_area > 0 ? as_spatial_half_area(box, box + 3) / e->root_area : 1.0;
+    emit_term(e, me, e->ct * ratio);
+    float child_box[6];
+    memcpy(child_box, box, sizeof child_box);
+    child_box[t->axis + 3] = t->pos;
+    emit_top(p, next, t->child[0], child_box);
+    e->nodes[me].word0 = as_float_as_uint(t->pos);
+    e->nodes[me].word1 = ((uint32_t)e->node_next << 2) | (uint32_t)t->axis;
+    child_box[t->axis + 3] = box[t->axis + 3];
+    child_box[t->axis] = t->pos;
+    emit_top(p, next, t->child[1], child_box);
+}
+
+static void part_emit(void *user, size_t i)
+{
+    kd_emit_plan *p = user;
+    kd_emit_part *k = &p->parts[i];
+    kd_emit e = *p->top;
+    e.node_next = k->node_at;
+    e.prim_next = k->prim_at;
+    e.leaf_next = k->leaf_at;
+    emit(k->t, k->box, &e);
+    k->bad = e.node_next != k->node_at + k->nodes || e.prim_next != k->prim_at + k->prims ||
+             e.leaf_next != k->leaf_at + k->leaves;
+}
+
+/* Trees of fewer nodes than this are written on one thread. */
+#define EMIT_MT_MIN_NODES 16384
+
+/* Subtrees at the cut and leaves above it under t, counting stops once it
+ * reaches `limit`. */
+static size_t parts_at(const kd_tmp *t, uint32_t depth, uint32_t cut, size_t limit)
+{
+    if (!t->child[0] || depth == cut) return 1;
+    const size_t left = parts_at(t->child[0], depth + 1, cut, limit);
+    return left >= limit ? left : left + parts_at(t->child[1], depth + 1, cut, limit - left);
+}
+
+/* Writes the tree of `nodes` nodes under root into e; 0 when the sizes
+ * counted disagree with what was written. */
+static int emit_tree(const kd_tmp *root, const float box[6], kd_emit *e, uint64_t nodes, unsigned threads)
+{
+    kd_emit_plan p = {e, 0, NULL, 0, 0};
+    if (threads > 1 && nodes >= EMIT_MT_MIN_NODES) {
+        /* The first depth at which the tree holds 64 parts per thread, at
+         * most 24 deep (a run of empty-space cuts near the root adds a level
+         * and a part each). */
+        const size_t want = 64 * (size_t)threads;
+        p.cut = 1;
+        while (p.cut < 24 && parts_at(root, 0, p.cut, want) < want) p.cut++;
+        e->terms = malloc(sizeof(double) * nodes);
+        if (!e->terms || !plan_parts(&p, root, 0)) {
+            free(e->terms);
+            e->terms = NULL;
+        }
+    }
+    if (!e->terms) {
+        free(p.parts);
+        emit(root, box, e);
+        return e->node_next == nodes;
+    }
+    as_parallel_for(threads, p.count, part_size, &p);
+    size_t next = 0;
+    emit_top(&p, &next, root, box);
+    int ok = next == p.count && e->node_next == nodes;
+    if (ok) as_parallel_for(threads, p.count, part_emit, &p);
+    for (size_t i = 0; ok && i < p.count; ++i) ok = !p.parts[i].bad;
+    for (uint64_t i = 0; ok && i < nodes; ++i) e->sah += e->terms[i];
+    free(e->terms);
+    e->terms = NULL;
+    free(p.parts);
+    return ok;
 }
 
 #define KD_INIT_CHUNKS 256
@@ -986,9 +1148,18 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
         scratch_free_all(&run);
         return as_get_error();
     }
-    kd_emit e = {nodes, prim, 0, 0, 0, args->cost_traversal, args->cost_intersection, as_spatial_half_area(box, box + 3), 0.0};
-    emit(root, box, &e);
+    kd_emit e = {nodes, prim, 0, 0, 0, args->cost_traversal, args->cost_intersection, as_spatial_half_area(box, box + 3),
+                 0.0, NULL};
+    const int written = emit_tree(root, box, &e, kc.nodes, threads);
     scratch_free_all(&run);
+    if (!written || e.prim_next != kc.leaves + kc.refs) {
+        free(nodes);
+        free(prim);
+        free(tris);
+        return as_set_error(AS_ERROR_UNKNOWN, "KD build bookkeeping: %llu nodes and %llu PRIM entries written, %llu and %llu counted",
+                            (unsigned long long)e.node_next, (unsigned long long)e.prim_next,
+                            (unsigned long long)kc.nodes, (unsigned long long)(kc.leaves + kc.refs));
+    }
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_KD, AS_LAYOUT_KD_STANDARD, AS_KD_LAYOUT_VERSION, ops->builder);
     /* The tree's root box, which the traversal starts from. */
