@@ -308,6 +308,169 @@ static void root_merge_axis(void *user, int a)
     r->e->count[a] = m;
 }
 
+/* The root's lists on many threads: each axis's list sorted by a parallel
+ * LSD radix sort, the halves-and-merge above using at most six threads and
+ * then three. Every pass is stable and the events are made in reference
+ * order in chunks kept in order, so the lists are the same words in the
+ * same order. Each pass counts its digit per chunk of the list, gives each
+ * chunk its place per bucket, and moves the events; a digit that all events
+ * of an axis share costs no move. */
+#define ROOT_RADIX_BITS 12
+#define ROOT_RADIX_BUCKETS (1u << ROOT_RADIX_BITS)
+#define ROOT_RADIX_PASSES 3 /* 36 bits cover the 34 of a key */
+#define ROOT_RADIX_MIN_REFS 16384
+#define ROOT_RADIX_MIN_THREADS 4
+
+typedef struct root_radix {
+    const kd_ref *refs;
+    uint32_t n;
+    unsigned chunks;                 /* per axis */
+    uint64_t *src[3], *dst[3];       /* the pass's input and output per axis */
+    size_t m[3];                     /* events per axis */
+    size_t *made;                    /* [a][c]: events chunk c made (pass 0 reads them where it made them) */
+    uint32_t *count;                 /* [a][c][bucket]: the pass's counts, then the chunk's next places */
+    int pass;
+    int moves[3];                    /* whether the pass moves the axis's events */
+    atomic_int failed;
+} root_radix;
+
+static uint32_t *radix_counts(root_radix *r, int a, unsigned c)
+{
+    return r->count + ((size_t)a * r->chunks + c) * ROOT_RADIX_BUCKETS;
+}
+
+static unsigned radix_digit(uint64_t ev, int pass)
+{
+    return (unsigned)(ev >> (EV_SORT_SHIFT + ROOT_RADIX_BITS * pass)) & (ROOT_RADIX_BUCKETS - 1);
+}
+
+/* The events of chunk c of axis a in the pass's input: pass 0 reads them
+ * where root_radix_make put them (at twice the chunk's first reference),
+ * later passes read the list in equal ranges. */
+static void radix_range(const root_radix *r, int a, unsigned c, const uint64_t **first, size_t *count)
+{
+    if (r->pass == 0) {
+        uint32_t f, e;
+        as_chunk_range(r->n, c, r->chunks, &f, &e);
+        *first = r->src[a] + 2 * (size_t)f;
+        *count = r->made[(size_t)a * r->chunks + c];
+        return;
+    }
+    size_t f = r->m[a] * c / r->chunks, e = r->m[a] * (c + 1) / r->chunks;
+    *first = r->src[a] + f;
+    *count = e - f;
+}
+
+/* Job i (axis i % 3, chunk i / 3): the chunk's events made (pass 0 only)
+ * and its digit counted. */
+static void radix_count(void *user, size_t i)
+{
+    root_radix *r = user;
+    const int a = (int)(i % 3);
+    const unsigned c = (unsigned)(i / 3);
+    if (r->pass == 0) {
+        uint32_t f, e;
+        as_chunk_range(r->n, c, r->chunks, &f, &e);
+        uint64_t *out = r->src[a] + 2 * (size_t)f;
+        size_t m = 0;
+        for (uint32_t k = f; k < e; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id);
+        r->made[(size_t)a * r->chunks + c] = m;
+    }
+    const uint64_t *ev;
+    size_t m;
+    radix_range(r, a, c, &ev, &m);
+    uint32_t *cnt = radix_counts(r, a, c);
+    memset(cnt, 0, sizeof(uint32_t) * ROOT_RADIX_BUCKETS);
+    for (size_t k = 0; k < m; ++k) cnt[radix_digit(ev[k], r->pass)]++;
+}
+
+/* Axis a: each chunk's first place per bucket (the buckets in order, the
+ * chunks in order within one), and whether the pass moves anything. */
+static void radix_places(void *user, int a)
+{
+    root_radix *r = user;
+    if (r->pass == 0) {
+        r->m[a] = 0;
+        for (unsigned c = 0; c < r->chunks; ++c) r->m[a] += r->made[(size_t)a * r->chunks + c];
+    }
+    size_t at = 0;
+    int buckets_used = 0;
+    for (uint32_t b = 0; b < ROOT_RADIX_BUCKETS; ++b) {
+        size_t in_bucket = 0;
+        for (unsigned c = 0; c < r->chunks; ++c) {
+            uint32_t *cnt = radix_counts(r, a, c);
+            const uint32_t k = cnt[b];
+            cnt[b] = (uint32_t)at;
+            at += k;
+            in_bucket += k;
+        }
+        buckets_used += in_bucket > 0;
+    }
+    /* Pass 0 always moves: its input is spread out where it was made. */
+    r->moves[a] = r->pass == 0 || buckets_used > 1;
+}
+
+static void radix_move(void *user, size_t i)
+{
+    root_radix *r = user;
+    const int a = (int)(i % 3);
+    const unsigned c = (unsigned)(i / 3);
+    if (!r->moves[a]) return;
+    const uint64_t *ev;
+    size_t m;
+    radix_range(r, a, c, &ev, &m);
+    uint32_t *next = radix_counts(r, a, c);
+    uint64_t *out = r->dst[a];
+    for (size_t k = 0; k < m; ++k) out[next[radix_digit(ev[k], r->pass)]++] = ev[k];
+}
+
+/* The sorted lists into e (per_axis room each), on `threads` threads; 0
+ * when out of memory. */
+static int sah_root_events_radix(const kd_ref *refs, uint32_t n, unsigned threads, sah_events *e)
+{
+    root_radix r;
+    memset(&r, 0, sizeof r);
+    r.refs = refs;
+    r.n = n;
+    r.chunks = threads > 64 ? 64 : threads;
+    atomic_init(&r.failed, 0);
+    uint64_t *scratch = malloc(sizeof(uint64_t) * 3 * 2 * (size_t)n);
+    r.made = malloc(sizeof(size_t) * 3 * r.chunks);
+    r.count = malloc(sizeof(uint32_t) * 3 * r.chunks * ROOT_RADIX_BUCKETS);
+    if (!scratch || !r.made || !r.count) {
+        free(scratch);
+        free(r.made);
+        free(r.count);
+        return 0;
+    }
+    /* Pass 0 makes the events in the scratch and moves them to the list;
+     * later passes go back and forth, each axis from where it is. */
+    for (int a = 0; a < 3; ++a) {
+        r.src[a] = scratch + (size_t)a * 2 * n;
+        r.dst[a] = e->list[a];
+    }
+    for (r.pass = 0; r.pass < ROOT_RADIX_PASSES; ++r.pass) {
+        as_parallel_for(threads, 3 * (size_t)r.chunks, radix_count, &r);
+        for_each_axis(3, radix_places, &r);
+        as_parallel_for(threads, 3 * (size_t)r.chunks, radix_move, &r);
+        for (int a = 0; a < 3; ++a) {
+            if (!r.moves[a]) continue;
+            uint64_t *t = r.src[a];
+            r.src[a] = r.dst[a];
+            r.dst[a] = r.pass == 0 ? scratch + (size_t)a * 2 * n : t;
+        }
+    }
+    for (int a = 0; a < 3; ++a) {
+        if (r.src[a] != e->list[a]) memcpy(e->list[a], r.src[a], sizeof(uint64_t) * r.m[a]);
+        e->list[a][r.m[a]] = UINT64_MAX;
+        e->count[a] = r.m[a];
+    }
+    free(scratch);
+    free(r.made);
+    free(r.count);
+    return 1;
+}
+
 static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
 {
     if (c->mesh->triangle_count > (uint64_t)EV_INDEX_MASK + 1) return NULL;
@@ -324,6 +487,11 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
     r.e = e;
     atomic_init(&r.failed, 0);
     const unsigned threads = as_thread_count(c->args->thread_count);
+    if (threads >= ROOT_RADIX_MIN_THREADS && n >= ROOT_RADIX_MIN_REFS) {
+        if (sah_root_events_radix(refs, n, threads, e)) return e;
+        free(e);
+        return NULL;
+    }
     as_parallel_run(threads < 2 ? 1 : (threads < 3 * ROOT_HALVES ? threads : 3 * ROOT_HALVES), root_sort_half, &r);
     if (!atomic_load(&r.failed)) for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
     if (atomic_load(&r.failed)) {
