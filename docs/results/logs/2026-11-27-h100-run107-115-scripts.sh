@@ -118,3 +118,86 @@ timeout 500 /tmp/b14/bench_build --runs 5 --paired 15 --commit $(cat .dev/commit
 grep -E "triangles$|met|MISS" $OUT/bench-16t.log
 date -u; echo "total $(el) s"
 
+### .dev/run112.sh
+set -u
+# Run 112: KD SAH phases (bl3-kd: a build loop linked against libas at 60a8532 with phase timers in
+# the KD driver: init, root events, tree, emit), 1, 4 and 16 threads.
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,os
+open('/tmp/bl3-kd','wb').write(lzma.open('.dev/z15/bl3-kd.xz').read()); os.chmod('/tmp/bl3-kd',0o755)
+"
+S=$PWD/.dev/scenes
+date -u; nvidia-smi --query-gpu=name --format=csv,noheader; echo "cores $(nproc)"
+for s in bunny.ply.zst staircase.ply.zst bathroom.drc bmw-m6.drc; do
+  for t in 1 4 16; do
+    n=6; [ $t = 1 ] && n=2
+    echo -n "$s t$t: "; timeout 100 /tmp/bl3-kd $S/$s kd:sah $t $n 2>&1 | grep -vE "^[0-9 ]+$" | tr '\n' ' ' | sed 's/\/[^ ]*\.\(drc\|zst\)//; s/cpu\/build.*//'; echo
+  done
+done
+date -u
+
+### .dev/run113.sh
+set -u
+# Run 113: KD SAH phases before (bl3-kd, 60a8532) and after the tree's write on every thread
+# (bl3-kd2, working tree), interleaved, 4 and 16 threads.
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,os
+for f in ('bl3-kd','bl3-kd2'):
+    open('/tmp/'+f,'wb').write(lzma.open('.dev/z15/'+f+'.xz').read()); os.chmod('/tmp/'+f,0o755)
+"
+S=$PWD/.dev/scenes
+date -u; nvidia-smi --query-gpu=name --format=csv,noheader; echo "cores $(nproc)"
+for round in 1 2; do
+for s in bunny.ply.zst staircase.ply.zst bathroom.drc bmw-m6.drc; do
+  for t in 4 16; do
+    for b in bl3-kd bl3-kd2; do
+      echo -n "$b $s t$t: "; timeout 100 /tmp/$b $S/$s kd:sah $t 5 2>&1 | grep -vE "^[0-9 ]+$" | tr '\n' ' ' | sed 's/\/[^ ]*\.\(drc\|zst\)//; s/cpu\/build.*//; s/(n=5)//g'; echo
+    done
+  done
+done
+done
+date -u
+
+### .dev/run114.sh
+set -u
+# Run 114: KD SAH phases with the root lists sorted by a parallel radix sort from 4 threads (bl3-kd3) against
+# the tree write on every thread only (bl3-kd2, b88202c), interleaved, 4 and 16 threads.
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,os
+for f in ('bl3-kd2','bl3-kd3'):
+    open('/tmp/'+f,'wb').write(lzma.open('.dev/z15/'+f+'.xz').read()); os.chmod('/tmp/'+f,0o755)
+"
+S=$PWD/.dev/scenes
+date -u; nvidia-smi --query-gpu=name --format=csv,noheader; echo "cores $(nproc)"
+for round in 1 2; do
+for s in bunny.ply.zst staircase.ply.zst bathroom.drc bmw-m6.drc; do
+  for t in 4 16; do
+    for b in bl3-kd2 bl3-kd3; do
+      echo -n "$b $s t$t: "; timeout 100 /tmp/$b $S/$s kd:sah $t 5 2>&1 | grep -vE "^[0-9 ]+$" | tr '\n' ' ' | sed 's/\/[^ ]*\.\(drc\|zst\)//; s/cpu\/build.*//; s/(n=5)//g'; echo
+    done
+  done
+done
+done
+date -u
+
+### .dev/run115.sh
+set -u
+# Run 115: bench_build at 88a94e9 (z14), 16 threads, paired rounds, the five benchmark scenes.
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,os
+os.makedirs('/tmp/b14',exist_ok=True)
+open('/tmp/b14/bench_build','wb').write(lzma.open('.dev/z14/bench_build.xz').read()); os.chmod('/tmp/b14/bench_build',0o755)
+open('.dev/lib/libembree3.so.3','wb').write(lzma.open('.dev/embree.xz').read())
+"
+S=$PWD/.dev/scenes
+date -u; nvidia-smi --query-gpu=name,driver_version --format=csv,noheader; echo "cores $(nproc); binaries at $(cat .dev/commit14)"; grep -o -w avx2 /proc/cpuinfo | head -1
+S0=$(date +%s); el(){ echo $(( $(date +%s) - S0 )); }
+mkdir -p $OUT
+timeout 500 /tmp/b14/bench_build --runs 5 --paired 15 --commit $(cat .dev/commit14) --out $OUT/bench-16t.md $S/bunny.ply.zst $S/staircase2.ply.zst $S/staircase.ply.zst $S/bathroom.drc $S/bmw-m6.drc > $OUT/bench-16t.log 2>&1; echo "bench exit $? at $(el) s"
+grep -E "triangles$|met|MISS" $OUT/bench-16t.log
+date -u; echo "total $(el) s"
+
