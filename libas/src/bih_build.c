@@ -58,7 +58,9 @@ typedef struct bih_builder {
     bih_ref *refs;
     bih_tmp *nodes;
     uint64_t node_capacity;
-    atomic_uint_fast64_t node_next;
+    atomic_uint_fast64_t node_next;   /* the next node chunk */
+    atomic_uint_fast64_t nodes_used;  /* below the root, summed as tasks end */
+    atomic_uint shared_tasks;
     uint32_t depth_limit;
     atomic_uint_fast64_t done;
     uint64_t total;
@@ -80,11 +82,36 @@ static void report(bih_builder *b, uint64_t prims)
     pthread_mutex_unlock(&b->progress_lock);
 }
 
-/* Objects in leaves not yet reported: each task's own, reported once they
- * make a step of the build (REPORT_STEPS) and when the task ends. */
+/* What a task keeps for itself: the objects in its leaves not yet
+ * reported (reported once they make a step of the build, REPORT_STEPS, and
+ * when the task ends), and its chunk of nodes. Nodes come in chunks of
+ * NODE_CHUNK per task, not a pair at a time from a counter every thread
+ * writes (which on 16 threads was taken hundreds of thousands of times per
+ * build); a task leaves at most a chunk unused, and at most
+ * MAX_SHARED_TASKS are handed over, which bounds the array. */
+#define NODE_CHUNK 64
+#define MAX_SHARED_TASKS 1024
+
 typedef struct bih_unreported {
     uint64_t count, step;
+    uint64_t chunk_next, chunk_end, used;
 } bih_unreported;
+
+/* Two adjacent nodes from the task's chunk; -1 when the array is full,
+ * which the array's bound rules out. */
+static int64_t take_pair(bih_builder *b, bih_unreported *u)
+{
+    if (u->chunk_next + 2 > u->chunk_end) {
+        const uint64_t first = atomic_fetch_add(&b->node_next, NODE_CHUNK);
+        if (first + NODE_CHUNK > b->node_capacity) return -1;
+        u->chunk_next = first;
+        u->chunk_end = first + NODE_CHUNK;
+    }
+    const uint64_t l = u->chunk_next;
+    u->chunk_next += 2;
+    u->used += 2;
+    return (int64_t)l;
+}
 
 static void make_leaf(bih_builder *b, bih_unreported *u, int32_t node, uint32_t first, uint32_t count)
 {
@@ -140,9 +167,10 @@ static void box_reset(float lo[3], float hi[3])
 static void build_subtree(as_task_pool *pool, bih_builder *b, const bih_task *t)
 {
     const uint64_t step = b->total / REPORT_STEPS;
-    bih_unreported u = {0, step ? step : 1};
+    bih_unreported u = {0, step ? step : 1, 0, 0, 0};
     build_node(pool, b, &u, t->node, t->first, t->count, t->depth, &t->boxes);
     if (u.count) report(b, u.count);
+    atomic_fetch_add(&b->nodes_used, u.used);
 }
 
 static void build_task(as_task_pool *pool, void *task, void *user)
@@ -248,8 +276,8 @@ static void build_node(as_task_pool *pool, bih_builder *b, bih_unreported *u, in
         memcpy(rb.cand_lo, cand_lo, sizeof cand_lo);
         memcpy(rb.cand_hi, cand_hi, sizeof cand_hi);
     }
-    const uint64_t l = atomic_fetch_add(&b->node_next, 2);
-    if (l + 2 > b->node_capacity) { /* cannot happen: 2n - 1 nodes at most */
+    const int64_t l = take_pair(b, u);
+    if (l < 0) { /* cannot happen: see MAX_SHARED_TASKS */
         make_leaf(b, u, node, first, count);
         return;
     }
@@ -264,8 +292,8 @@ static void build_node(as_task_pool *pool, bih_builder *b, bih_unreported *u, in
     n->count = count;
     const uint32_t lcount = mid - first, rcount = first + count - mid;
     const bih_task right = {(int32_t)l + 1, mid, rcount, depth + 1, rb};
-    const int shared =
-        pool && rcount >= PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &right);
+    const int shared = pool && rcount >= PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) &&
+                       atomic_fetch_add(&b->shared_tasks, 1) < MAX_SHARED_TASKS && as_task_pool_push(pool, &right);
     build_node(pool, b, u, (int32_t)l, first, lcount, depth + 1, &lb);
     if (!shared) build_node(pool, b, u, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
 }
@@ -564,7 +592,13 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
      * every build, and the faults of many threads wait on each other. */
     const size_t refs_bytes = sizeof(bih_ref) * (size_t)(n ? n : 1);
     b.refs = as_block_take(refs_bytes, 0, "BIH references");
-    b.node_capacity = 2 * (uint64_t)n + 1;
+    /* 2n - 1 nodes at most, and a chunk each task may leave unused: the
+     * root's task and those handed over (at most one per node of
+     * PARALLEL_MIN_PRIMS objects or more, so at most 2n / that). */
+    const uint64_t tasks = 1 + (2 * (uint64_t)n / PARALLEL_MIN_PRIMS < MAX_SHARED_TASKS
+                                    ? 2 * (uint64_t)n / PARALLEL_MIN_PRIMS
+                                    : MAX_SHARED_TASKS);
+    b.node_capacity = 2 * (uint64_t)n + 1 + NODE_CHUNK * tasks;
     const size_t nodes_bytes = sizeof(bih_tmp) * b.node_capacity;
     b.nodes = as_block_take(nodes_bytes, 0, "BIH build nodes");
     as_bih_node_t *out = NULL;
@@ -616,7 +650,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
         as_set_error(AS_ERROR_CANCELLED, "BIH build cancelled by the progress callback");
         goto fail;
     }
-    const uint64_t node_count = atomic_load(&b.node_next);
+    const uint64_t node_count = 1 + atomic_load(&b.nodes_used);
     out = as_aligned_alloc(sizeof(as_bih_node_t) * node_count, "BIH nodes");
     prims = as_aligned_alloc(sizeof(uint32_t) * (size_t)(n ? n : 1), "BIH PRIM");
     tris = as_spatial_tris(mesh, as_thread_count(args->thread_count));
