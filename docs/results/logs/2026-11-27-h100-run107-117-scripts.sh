@@ -201,3 +201,45 @@ timeout 500 /tmp/b14/bench_build --runs 5 --paired 15 --commit $(cat .dev/commit
 grep -E "triangles$|met|MISS" $OUT/bench-16t.log
 date -u; echo "total $(el) s"
 
+### .dev/run116.sh
+set -u
+# Run 116: BIH with nodes taken in chunks of 64 per task (bl3-bihc) against nodes taken a pair at a
+# time from one counter (bl3-kd3, 88a94e9), interleaved, 4 and 16 threads; binned SAH for reference.
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,os
+for f in ('bl3-kd3','bl3-bihc'):
+    open('/tmp/'+f,'wb').write(lzma.open('.dev/z15/'+f+'.xz').read()); os.chmod('/tmp/'+f,0o755)
+"
+S=$PWD/.dev/scenes
+date -u; nvidia-smi --query-gpu=name --format=csv,noheader; echo "cores $(nproc)"
+for round in 1 2; do
+for s in bunny.ply.zst staircase.ply.zst bathroom.drc bmw-m6.drc; do
+  for t in 4 16; do
+    for b in bl3-kd3 bl3-bihc; do
+      echo -n "$b $s t$t: "; timeout 100 /tmp/$b $S/$s bih:default $t 10 2>&1 | grep -vE "^[0-9 ]+$" | tr '\n' ' ' | sed 's/\/[^ ]*\.\(drc\|zst\)//; s/cpu\/build.*//; s/(n=10)//g'; echo
+    done
+  done
+  echo -n "binned $s t16: "; timeout 100 /tmp/bl3-kd3 $S/$s bvh:sah 16 10 2>&1 | grep -vE "^[0-9 ]+$" | tr '\n' ' ' | sed 's/\/[^ ]*\.\(drc\|zst\)//; s/cpu\/build.*//; s/(n=10)//g'; echo
+done
+done
+date -u
+
+### .dev/run117.sh
+set -u
+# Run 117: bench_build at 7de8282 (z14), 16 threads, paired rounds, the five benchmark scenes.
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,os
+os.makedirs('/tmp/b14',exist_ok=True)
+open('/tmp/b14/bench_build','wb').write(lzma.open('.dev/z14/bench_build.xz').read()); os.chmod('/tmp/b14/bench_build',0o755)
+open('.dev/lib/libembree3.so.3','wb').write(lzma.open('.dev/embree.xz').read())
+"
+S=$PWD/.dev/scenes
+date -u; nvidia-smi --query-gpu=name,driver_version --format=csv,noheader; echo "cores $(nproc); binaries at $(cat .dev/commit14)"; grep -o -w avx2 /proc/cpuinfo | head -1
+S0=$(date +%s); el(){ echo $(( $(date +%s) - S0 )); }
+mkdir -p $OUT
+timeout 500 /tmp/b14/bench_build --runs 5 --paired 15 --commit $(cat .dev/commit14) --out $OUT/bench-16t.md $S/bunny.ply.zst $S/staircase2.ply.zst $S/staircase.ply.zst $S/bathroom.drc $S/bmw-m6.drc > $OUT/bench-16t.log 2>&1; echo "bench exit $? at $(el) s"
+grep -E "triangles$|met|MISS" $OUT/bench-16t.log
+date -u; echo "total $(el) s"
+
