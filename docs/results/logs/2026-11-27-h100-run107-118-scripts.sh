@@ -243,3 +243,27 @@ timeout 500 /tmp/b14/bench_build --runs 5 --paired 15 --commit $(cat .dev/commit
 grep -E "triangles$|met|MISS" $OUT/bench-16t.log
 date -u; echo "total $(el) s"
 
+### .dev/run118.sh
+set -u
+# Run 118: BIH with big partitions in pieces (bl3-bihp) against 7de8282 (bl3-bihc), interleaved;
+# binned SAH for reference.
+export LD_LIBRARY_PATH=$PWD/.dev/lib
+python3 -c "
+import lzma,os
+for f in ('bl3-bihc','bl3-bihp'):
+    open('/tmp/'+f,'wb').write(lzma.open('.dev/z15/'+f+'.xz').read()); os.chmod('/tmp/'+f,0o755)
+"
+S=$PWD/.dev/scenes
+date -u; nvidia-smi --query-gpu=name --format=csv,noheader; echo "cores $(nproc)"
+for round in 1 2; do
+for s in bunny.ply.zst staircase.ply.zst bathroom.drc bmw-m6.drc; do
+  for t in 4 16; do
+    for b in bl3-bihc bl3-bihp; do
+      echo -n "$b $s t$t: "; timeout 100 /tmp/$b $S/$s bih:default $t 10 2>&1 | grep -vE "^[0-9 ]+$" | tr '\n' ' ' | sed 's/\/[^ ]*\.\(drc\|zst\)//; s/cpu\/build.*//; s/(n=10)//g'; echo
+    done
+  done
+  echo -n "binned $s t16: "; timeout 100 /tmp/bl3-bihc $S/$s bvh:sah 16 10 2>&1 | grep -vE "^[0-9 ]+$" | tr '\n' ' ' | sed 's/\/[^ ]*\.\(drc\|zst\)//; s/cpu\/build.*//; s/(n=10)//g'; echo
+done
+done
+date -u
+
