@@ -92,14 +92,14 @@ static void report(bih_builder *b, uint64_t prims)
 #define NODE_CHUNK 64
 #define MAX_SHARED_TASKS 1024
 
-typedef struct bih_unreported {
+typedef struct bih_local {
     uint64_t count, step;
     uint64_t chunk_next, chunk_end, used;
-} bih_unreported;
+} bih_local;
 
 /* Two adjacent nodes from the task's chunk; -1 when the array is full,
  * which the array's bound rules out. */
-static int64_t take_pair(bih_builder *b, bih_unreported *u)
+static int64_t take_pair(bih_builder *b, bih_local *u)
 {
     if (u->chunk_next + 2 > u->chunk_end) {
         const uint64_t first = atomic_fetch_add(&b->node_next, NODE_CHUNK);
@@ -113,7 +113,7 @@ static int64_t take_pair(bih_builder *b, bih_unreported *u)
     return (int64_t)l;
 }
 
-static void make_leaf(bih_builder *b, bih_unreported *u, int32_t node, uint32_t first, uint32_t count)
+static void make_leaf(bih_builder *b, bih_local *u, int32_t node, uint32_t first, uint32_t count)
 {
     bih_tmp *n = &b->nodes[node];
     n->left = -1;
@@ -142,7 +142,7 @@ typedef struct bih_task {
     bih_boxes boxes;
 } bih_task;
 
-static void build_node(as_task_pool *pool, bih_builder *b, bih_unreported *u, int32_t node, uint32_t first,
+static void build_node(as_task_pool *pool, bih_builder *b, bih_local *u, int32_t node, uint32_t first,
                        uint32_t count, uint32_t depth, const bih_boxes *in);
 
 static void centre_grow(const bih_ref *r, float lo[3], float hi[3])
@@ -167,7 +167,7 @@ static void box_reset(float lo[3], float hi[3])
 static void build_subtree(as_task_pool *pool, bih_builder *b, const bih_task *t)
 {
     const uint64_t step = b->total / REPORT_STEPS;
-    bih_unreported u = {0, step ? step : 1, 0, 0, 0};
+    bih_local u = {0, step ? step : 1, 0, 0, 0};
     build_node(pool, b, &u, t->node, t->first, t->count, t->depth, &t->boxes);
     if (u.count) report(b, u.count);
     atomic_fetch_add(&b->nodes_used, u.used);
@@ -180,7 +180,7 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     build_subtree(pool, user, &t);
 }
 
-static void build_node(as_task_pool *pool, bih_builder *b, bih_unreported *u, int32_t node, uint32_t first,
+static void build_node(as_task_pool *pool, bih_builder *b, bih_local *u, int32_t node, uint32_t first,
                        uint32_t count, uint32_t depth, const bih_boxes *in)
 {
     if (atomic_load(&b->cancelled) || count <= b->args->max_leaf_size || depth >= b->depth_limit) {
@@ -409,24 +409,6 @@ static uint64_t flat_inner(bih_flat *f, const bih_tmp *n, as_bih_node_t *d, cons
     return c;
 }
 
-/* Writes tmp node `t`, whose box is lo-hi, at out[o]; its children go to
- * two adjacent slots. The SAH terms come in the order of as_bih_sah_cost's
- * walk (pre-order), so their sum is that walk's to the last bit without a
- * second walk. */
-static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth, const float lo[3], const float hi[3])
-{
-    const bih_tmp *n = &f->b->nodes[t];
-    flat_add(f, flat_term(f, n, lo, hi));
-    if (n->left < 0) {
-        flat_leaf(f, n, &f->out[o], depth);
-        return;
-    }
-    float box[2][2][3];
-    const uint64_t c = flat_inner(f, n, &f->out[o], lo, hi, box);
-    flatten(f, n->left, c, depth + 1, box[0][0], box[0][1]);
-    flatten(f, n->left + 1, c + 1, depth + 1, box[1][0], box[1][1]);
-}
-
 /* The walk on several threads. The top of the tree is walked on one
  * thread down to subtrees of at most `grain` objects; each such subtree's
  * nodes take a range of slots and of pre-order positions that its size
@@ -449,7 +431,41 @@ typedef struct bih_flat_plan {
     uint32_t grain;
     bih_flat_task *tasks;
     size_t count, capacity;
+    size_t next;             /* the top walk: the next subtree it meets */
 } bih_flat_plan;
+
+/* Writes tmp node `t`, whose box is lo-hi, at out[o]; its children go to
+ * two adjacent slots. The SAH terms come in the order of as_bih_sah_cost's
+ * walk (pre-order), so their sum is that walk's to the last bit without a
+ * second walk. With a plan (the top of a walk on several threads) a
+ * listed subtree is not written: it gets its box and its ranges, in the
+ * order plan_collect listed them. */
+static void flatten(bih_flat *f, int32_t t, uint64_t o, uint32_t depth, const float lo[3], const float hi[3],
+                    bih_flat_plan *p)
+{
+    if (p && p->next < p->count && p->tasks[p->next].t == t) {
+        bih_flat_task *k = &p->tasks[p->next++];
+        k->o = o;
+        k->depth = depth;
+        memcpy(k->lo, lo, sizeof k->lo);
+        memcpy(k->hi, hi, sizeof k->hi);
+        k->out_next = f->out_count;
+        k->term_pos = f->term_pos;
+        f->out_count += k->size - 1;
+        f->term_pos += k->size;
+        return;
+    }
+    const bih_tmp *n = &f->b->nodes[t];
+    flat_add(f, flat_term(f, n, lo, hi));
+    if (n->left < 0) {
+        flat_leaf(f, n, &f->out[o], depth);
+        return;
+    }
+    float box[2][2][3];
+    const uint64_t c = flat_inner(f, n, &f->out[o], lo, hi, box);
+    flatten(f, n->left, c, depth + 1, box[0][0], box[0][1], p);
+    flatten(f, n->left + 1, c + 1, depth + 1, box[1][0], box[1][1], p);
+}
 
 static uint64_t subtree_size(const bih_tmp *nodes, int32_t t)
 {
@@ -483,32 +499,6 @@ static void plan_size(void *user, size_t i)
     p->tasks[i].size = subtree_size(p->top->b->nodes, p->tasks[i].t);
 }
 
-/* The top walk: writes the nodes above the subtrees and gives each subtree
- * its ranges, in the order plan_collect listed them (*next). */
-static void plan_top(bih_flat_plan *p, size_t *next, int32_t t, uint64_t o, uint32_t depth, const float lo[3],
-                     const float hi[3])
-{
-    bih_flat *f = p->top;
-    const bih_tmp *n = &f->b->nodes[t];
-    if (*next < p->count && p->tasks[*next].t == t) {
-        bih_flat_task *k = &p->tasks[(*next)++];
-        k->o = o;
-        k->depth = depth;
-        memcpy(k->lo, lo, sizeof k->lo);
-        memcpy(k->hi, hi, sizeof k->hi);
-        k->out_next = f->out_count;
-        k->term_pos = f->term_pos;
-        f->out_count += k->size - 1;
-        f->term_pos += k->size;
-        return;
-    }
-    flat_add(f, flat_term(f, n, lo, hi));
-    float box[2][2][3];
-    const uint64_t c = flat_inner(f, n, &f->out[o], lo, hi, box);
-    plan_top(p, next, n->left, c, depth + 1, box[0][0], box[0][1]);
-    plan_top(p, next, n->left + 1, c + 1, depth + 1, box[1][0], box[1][1]);
-}
-
 static void plan_write(void *user, size_t i)
 {
     bih_flat_plan *p = user;
@@ -518,7 +508,7 @@ static void plan_write(void *user, size_t i)
     f.term_pos = k->term_pos;
     f.prim_count = f.leaves = f.empty_leaves = 0;
     f.max_depth = 0;
-    flatten(&f, k->t, k->o, k->depth, k->lo, k->hi);
+    flatten(&f, k->t, k->o, k->depth, k->lo, k->hi, NULL);
     k->leaves = f.leaves;
     k->empty_leaves = f.empty_leaves;
     k->prims = f.prim_count;
@@ -534,7 +524,7 @@ static void plan_write(void *user, size_t i)
 static int flatten_tree(bih_flat *f, uint64_t node_count, uint32_t n, unsigned threads, const float lo[3],
                         const float hi[3])
 {
-    bih_flat_plan p = {f, 0, NULL, 0, 0};
+    bih_flat_plan p = {f, 0, NULL, 0, 0, 0};
     if (threads > 1 && node_count >= FLAT_MT_MIN_NODES) {
         f->terms = malloc(sizeof(double) * node_count);
         /* About 32 subtrees per thread, so that the last one to finish
@@ -548,13 +538,12 @@ static int flatten_tree(bih_flat *f, uint64_t node_count, uint32_t n, unsigned t
         }
     }
     if (!f->terms) {
-        flatten(f, 0, 0, 0, lo, hi);
+        flatten(f, 0, 0, 0, lo, hi, NULL);
         return f->out_count == node_count;
     }
     as_parallel_for(threads, p.count, plan_size, &p);
-    size_t next = 0;
-    plan_top(&p, &next, 0, 0, 0, lo, hi);
-    int ok = next == p.count && f->out_count == node_count && f->term_pos == node_count;
+    flatten(f, 0, 0, 0, lo, hi, &p);
+    int ok = p.next == p.count && f->out_count == node_count && f->term_pos == node_count;
     if (ok) as_parallel_for(threads, p.count, plan_write, &p);
     for (size_t i = 0; ok && i < p.count; ++i) {
         const bih_flat_task *k = &p.tasks[i];

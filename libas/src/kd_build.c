@@ -828,34 +828,6 @@ static void emit_term(kd_emit *e, uint64_t me, double term)
     else e->sah += term;
 }
 
-/* Writes the subtree of t (box `box`) in preorder, the left child first, and
- * adds its SAH cost in that order: the sum as_kd_sah_cost makes from the
- * written tree, bit for bit, without walking it again. */
-static void emit(const kd_tmp *t, const float box[6], kd_emit *e)
-{
-    const uint64_t me = e->node_next++;
-    const double ratio = e->root_area > 0 ? as_spatial_half_area(box, box + 3) / e->root_area : 1.0;
-    if (!t->child[0]) {
-        emit_term(e, me, e->ci * t->count * ratio);
-        e->nodes[me].word0 = (uint32_t)e->prim_next;
-        e->nodes[me].word1 = (e->leaf_next++ << 2) | AS_KD_LEAF_TAG;
-        e->prim[e->prim_next++] = t->count;
-        if (t->count) memcpy(e->prim + e->prim_next, t->ids, sizeof(uint32_t) * t->count); /* ids may be NULL */
-        e->prim_next += t->count;
-        return;
-    }
-    emit_term(e, me, e->ct * ratio);
-    float child_box[6];
-    memcpy(child_box, box, sizeof child_box);
-    child_box[t->axis + 3] = t->pos;
-    emit(t->child[0], child_box, e);
-    e->nodes[me].word0 = as_float_as_uint(t->pos);
-    e->nodes[me].word1 = ((uint32_t)e->node_next << 2) | (uint32_t)t->axis;
-    child_box[t->axis + 3] = box[t->axis + 3];
-    child_box[t->axis] = t->pos;
-    emit(t->child[1], child_box, e);
-}
-
 /* The write on several threads. The tree is cut at one depth, chosen so
  * that it holds about 64 subtrees per thread (or at the leaves above it);
  * each subtree's size (nodes, PRIM entries, leaves) is counted on every
@@ -875,11 +847,52 @@ typedef struct kd_emit_part {
 } kd_emit_part;
 
 typedef struct kd_emit_plan {
-    kd_emit *top;
     uint32_t cut;              /* the depth of the subtrees' roots */
     kd_emit_part *parts;
     size_t count, capacity;
+    size_t next;               /* the top walk: the next part it meets */
 } kd_emit_plan;
+
+/* Writes the subtree of t (box `box`) in preorder, the left child first, and
+ * adds its SAH cost in that order: the sum as_kd_sah_cost makes from the
+ * written tree, bit for bit, without walking it again. With a plan (the top
+ * of a write on several threads) a part's subtree is not written: it gets
+ * its box and its places, in the order plan_parts listed the parts. */
+static void emit(const kd_tmp *t, const float box[6], kd_emit *e, kd_emit_plan *p)
+{
+    if (p && p->next < p->count && p->parts[p->next].t == t) {
+        kd_emit_part *k = &p->parts[p->next++];
+        memcpy(k->box, box, sizeof k->box);
+        k->node_at = e->node_next;
+        k->prim_at = e->prim_next;
+        k->leaf_at = e->leaf_next;
+        e->node_next += k->nodes;
+        e->prim_next += k->prims;
+        e->leaf_next += k->leaves;
+        return;
+    }
+    const uint64_t me = e->node_next++;
+    const double ratio = e->root_area > 0 ? as_spatial_half_area(box, box + 3) / e->root_area : 1.0;
+    if (!t->child[0]) {
+        emit_term(e, me, e->ci * t->count * ratio);
+        e->nodes[me].word0 = (uint32_t)e->prim_next;
+        e->nodes[me].word1 = (e->leaf_next++ << 2) | AS_KD_LEAF_TAG;
+        e->prim[e->prim_next++] = t->count;
+        if (t->count) memcpy(e->prim + e->prim_next, t->ids, sizeof(uint32_t) * t->count); /* ids may be NULL */
+        e->prim_next += t->count;
+        return;
+    }
+    emit_term(e, me, e->ct * ratio);
+    float child_box[6];
+    memcpy(child_box, box, sizeof child_box);
+    child_box[t->axis + 3] = t->pos;
+    emit(t->child[0], child_box, e, p);
+    e->nodes[me].word0 = as_float_as_uint(t->pos);
+    e->nodes[me].word1 = ((uint32_t)e->node_next << 2) | (uint32_t)t->axis;
+    child_box[t->axis + 3] = box[t->axis + 3];
+    child_box[t->axis] = t->pos;
+    emit(t->child[1], child_box, e, p);
+}
 
 static void subtree_size(const kd_tmp *t, kd_emit_part *p)
 {
@@ -913,52 +926,26 @@ static int plan_parts(kd_emit_plan *p, const kd_tmp *t, uint32_t depth)
     return plan_parts(p, t->child[0], depth + 1) && plan_parts(p, t->child[1], depth + 1);
 }
 
+typedef struct kd_emit_job {
+    const kd_emit *top;
+    kd_emit_plan *plan;
+} kd_emit_job;
+
 static void part_size(void *user, size_t i)
 {
-    kd_emit_plan *p = user;
-    subtree_size(p->parts[i].t, &p->parts[i]);
-}
-
-/* emit above the cut: each part gets its box and its places, in the order
- * plan_parts listed them (*next). */
-static void emit_top(kd_emit_plan *p, size_t *next, const kd_tmp *t, const float box[6])
-{
-    kd_emit *e = p->top;
-    if (*next < p->count && p->parts[*next].t == t) {
-        kd_emit_part *k = &p->parts[(*next)++];
-        memcpy(k->box, box, sizeof k->box);
-        k->node_at = e->node_next;
-        k->prim_at = e->prim_next;
-        k->leaf_at = e->leaf_next;
-        e->node_next += k->nodes;
-        e->prim_next += k->prims;
-        e->leaf_next += k->leaves;
-        return;
-    }
-    /* An inner node above the cut (the parts hold every leaf). */
-    const uint64_t me = e->node_next++;
-    const double ratio = e->root_area > 0 ? as_spatial_half_area(box, box + 3) / e->root_area : 1.0;
-    emit_term(e, me, e->ct * ratio);
-    float child_box[6];
-    memcpy(child_box, box, sizeof child_box);
-    child_box[t->axis + 3] = t->pos;
-    emit_top(p, next, t->child[0], child_box);
-    e->nodes[me].word0 = as_float_as_uint(t->pos);
-    e->nodes[me].word1 = ((uint32_t)e->node_next << 2) | (uint32_t)t->axis;
-    child_box[t->axis + 3] = box[t->axis + 3];
-    child_box[t->axis] = t->pos;
-    emit_top(p, next, t->child[1], child_box);
+    kd_emit_job *j = user;
+    subtree_size(j->plan->parts[i].t, &j->plan->parts[i]);
 }
 
 static void part_emit(void *user, size_t i)
 {
-    kd_emit_plan *p = user;
-    kd_emit_part *k = &p->parts[i];
-    kd_emit e = *p->top;
+    kd_emit_job *j = user;
+    kd_emit_part *k = &j->plan->parts[i];
+    kd_emit e = *j->top;
     e.node_next = k->node_at;
     e.prim_next = k->prim_at;
     e.leaf_next = k->leaf_at;
-    emit(k->t, k->box, &e);
+    emit(k->t, k->box, &e, NULL);
     k->bad = e.node_next != k->node_at + k->nodes || e.prim_next != k->prim_at + k->prims ||
              e.leaf_next != k->leaf_at + k->leaves;
 }
@@ -979,7 +966,7 @@ static size_t parts_at(const kd_tmp *t, uint32_t depth, uint32_t cut, size_t lim
  * counted disagree with what was written. */
 static int emit_tree(const kd_tmp *root, const float box[6], kd_emit *e, uint64_t nodes, unsigned threads)
 {
-    kd_emit_plan p = {e, 0, NULL, 0, 0};
+    kd_emit_plan p = {0, NULL, 0, 0, 0};
     if (threads > 1 && nodes >= EMIT_MT_MIN_NODES) {
         /* The first depth at which the tree holds 64 parts per thread, at
          * most 24 deep (a run of empty-space cuts near the root adds a level
@@ -995,14 +982,14 @@ static int emit_tree(const kd_tmp *root, const float box[6], kd_emit *e, uint64_
     }
     if (!e->terms) {
         free(p.parts);
-        emit(root, box, e);
+        emit(root, box, e, NULL);
         return e->node_next == nodes;
     }
-    as_parallel_for(threads, p.count, part_size, &p);
-    size_t next = 0;
-    emit_top(&p, &next, root, box);
-    int ok = next == p.count && e->node_next == nodes;
-    if (ok) as_parallel_for(threads, p.count, part_emit, &p);
+    kd_emit_job j = {e, &p};
+    as_parallel_for(threads, p.count, part_size, &j);
+    emit(root, box, e, &p);
+    int ok = p.next == p.count && e->node_next == nodes;
+    if (ok) as_parallel_for(threads, p.count, part_emit, &j);
     for (size_t i = 0; ok && i < p.count; ++i) ok = !p.parts[i].bad;
     for (uint64_t i = 0; ok && i < nodes; ++i) e->sah += e->terms[i];
     free(e->terms);

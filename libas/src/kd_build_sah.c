@@ -331,7 +331,6 @@ typedef struct root_radix {
     uint32_t *count;                 /* [a][c][bucket]: the pass's counts, then the chunk's next places */
     int pass;
     int moves[3];                    /* whether the pass moves the axis's events */
-    atomic_int failed;
 } root_radix;
 
 static uint32_t *radix_counts(root_radix *r, int a, unsigned c)
@@ -345,7 +344,7 @@ static unsigned radix_digit(uint64_t ev, int pass)
 }
 
 /* The events of chunk c of axis a in the pass's input: pass 0 reads them
- * where root_radix_make put them (at twice the chunk's first reference),
+ * where radix_count made them (at twice the chunk's first reference),
  * later passes read the list in equal ranges. */
 static void radix_range(const root_radix *r, int a, unsigned c, const uint64_t **first, size_t *count)
 {
@@ -433,7 +432,6 @@ static int sah_root_events_radix(const kd_ref *refs, uint32_t n, unsigned thread
     r.refs = refs;
     r.n = n;
     r.chunks = threads > 64 ? 64 : threads;
-    atomic_init(&r.failed, 0);
     uint64_t *scratch = malloc(sizeof(uint64_t) * 3 * 2 * (size_t)n);
     r.made = malloc(sizeof(size_t) * 3 * r.chunks);
     r.count = malloc(sizeof(uint32_t) * 3 * r.chunks * ROOT_RADIX_BUCKETS);
