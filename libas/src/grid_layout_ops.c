@@ -24,19 +24,23 @@ double as_grid_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
     for (int k = 0; k < 3; ++k) cell_hi[k] = g->cell[k] > 0 ? g->cell[k] : g->hi[k] - g->lo[k];
     const double rel = root_area > 0 ? as_spatial_half_area(cell_lo, cell_hi) / root_area : 1.0;
     const uint64_t cells = cs->count - 1;
-    double sah = ct;
-    for (uint64_t c = 0; c < cells; ++c) {
-        const uint32_t k = off[c + 1] - off[c];
-        sah += (ct + ci * k) * rel;
-        if (!st || k == 0) continue;
-        st->leaf_count++;
-        st->leaf_size_histogram[k < AS_HISTOGRAM_BINS ? k : AS_HISTOGRAM_BINS - 1]++;
-    }
+    /* Every cell has the same area, so the sum over cells is C_t x cells +
+     * C_i x references, both exact integers: one expression instead of a
+     * serial sum over every cell (about 4 ms of each build of bmw-m6's 3
+     * million, whatever the thread count), and no rounding that grows with
+     * the cells. */
+    const uint64_t refs = off[cells] - off[0];
     if (st) {
+        for (uint64_t c = 0; c < cells; ++c) {
+            const uint32_t k = off[c + 1] - off[c];
+            if (k == 0) continue;
+            st->leaf_count++;
+            st->leaf_size_histogram[k < AS_HISTOGRAM_BINS ? k : AS_HISTOGRAM_BINS - 1]++;
+        }
         st->depth_histogram[0] = st->leaf_count; /* every cell is at depth 0 */
         memcpy(st->grid_dims, g->dims, sizeof st->grid_dims);
     }
-    return sah;
+    return ct + (ct * (double)cells + ci * (double)refs) * rel;
 }
 
 static void grid_stats(const as_structure_t *s, as_structure_stats_t *st)
