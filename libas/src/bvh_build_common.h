@@ -85,6 +85,11 @@ typedef struct bvh_builder {
     atomic_uint_fast64_t inner_count;  /* splits, summed by bvh_local_flush */
     atomic_uint tasks_shared;          /* bvh_share_task's pushes */
     uint32_t exact_max;       /* in-place builders: subtrees up to this size go to bvh_build_exact_subtree; 0: none */
+    /* Binned SAH: each reference's bin on every axis, a byte per axis
+     * (bvh_find_object_split's bins_out), by position in refs: written by
+     * a node's binning and read by its partition (ref_count entries, from
+     * as_block_take; NULL for the other builders). */
+    uint32_t *ref_bins;
 } bvh_builder;
 
 /* Tmp nodes are taken from the shared array in chunks of this many per
@@ -281,16 +286,24 @@ typedef struct bvh_object_split {
     bvh_box left, right;
     uint32_t left_count, right_count;
 } bvh_object_split;
-bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t bin_count);
+/* The frame cb2 need only bound the node's lo + hi loosely: a reference
+ * outside it is binned into the first or last bin, which still hold the
+ * exact bounds and counts of their references. When bins_out is not NULL,
+ * bins_out[i] is set to refs[i]'s bin on axis k in byte k, for
+ * bvh_partition_object. */
+bvh_object_split bvh_find_object_split(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t bin_count,
+                                       uint32_t *bins_out);
 /* The same split, binned in `threads` chunks on as many threads and merged:
  * the bins, and so the split, are those of bvh_find_object_split. */
 bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, const bvh_box *cb2, uint32_t bin_count,
-                                          unsigned threads);
+                                          unsigned threads, uint32_t *bins_out);
 /* Whether r goes left: the float operations of the binning, on one axis,
  * so the partition and the bins always agree. The binning truncates
  * f = (lo + hi - cmin) x scale, clamped into [0, bins - 1], and f is never
- * negative nor NaN there (cmin is the smallest lo + hi, scale is finite), so
- * "bin <= s->bin" is "f < s->bin + 1": one comparison. */
+ * NaN there (scale is finite). A negative f is bin 0 and below the limit,
+ * an f at or above the bin count the last bin and above it (the last bin
+ * is never a split's left side), and otherwise "bin <= s->bin" is
+ * "f < s->bin + 1": one comparison either way. */
 static inline int bvh_object_split_left(const bvh_ref *r, const bvh_object_split *s)
 {
     const int a = s->axis;
@@ -350,8 +363,10 @@ typedef struct bvh_range {
 /* Sets r's box and cbox from its references. */
 void bvh_range_bound(const bvh_builder *b, bvh_range *r);
 
-/* Partitions node's references in place by an object split, filling both
- * sides with their bounds; returns the first index of the right side. */
+/* Partitions node's references in place by an object split found with
+ * bins_out = b->ref_bins + node->first, filling both sides with their
+ * boxes and with frames for their binning (see bvh_split_frames); returns
+ * the first index of the right side. */
 uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
                               bvh_range *right);
 /* The same permutation on `threads` threads. */

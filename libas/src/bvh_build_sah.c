@@ -7,10 +7,12 @@
  *
  * Speed: subtrees of up to BVH_EXACT_MAX references are built by the exact
  * sweep (bvh_build_exact.c), which costs less than setting up bins; above,
- * one pass bins all three axes, the SAH sweep visits only occupied bins, and
- * the partition computes both children's boxes and centroid boxes as it
- * goes, so each level costs two passes over its references; subtrees go to
- * idle threads (task_pool.h). */
+ * one pass bins all three axes and notes each reference's bins, the SAH
+ * sweep visits only occupied bins, and the partition reads the noted bins
+ * (4 bytes a reference) instead of the references (32), so each level
+ * costs one pass over its references; the children's boxes come from the
+ * bins and their binning frames from the split (bvh_build_common.c,
+ * split_frames); subtrees go to idle threads (task_pool.h). */
 #include "bvh_build_common.h"
 
 #include <math.h>
@@ -30,9 +32,10 @@ static int binned_split(bvh_builder *b, const bvh_range *node, unsigned threads,
     const uint32_t count = node->count;
     uint32_t nb = b->args->bin_count;
     if (count > BVH_DOUBLE_BINS_MIN) nb = 2 * nb < BVH_MAX_BINS ? 2 * nb : BVH_MAX_BINS;
+    uint32_t *bins = b->ref_bins + node->first;
     const bvh_object_split s =
-        threads > 1 ? bvh_find_object_split_mt(b->refs + node->first, count, &node->cbox, nb, threads)
-                    : bvh_find_object_split(b->refs + node->first, count, &node->cbox, nb);
+        threads > 1 ? bvh_find_object_split_mt(b->refs + node->first, count, &node->cbox, nb, threads, bins)
+                    : bvh_find_object_split(b->refs + node->first, count, &node->cbox, nb, bins);
     const double area = bvh_box_half_area(&node->box);
     const double leaf_cost = ci * (double)count;
     const double split_cost = area > 0 ? ct + ci * s.cost / area : ct + ci * (double)count;
@@ -61,6 +64,12 @@ as_error_t as_bvh_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, 
     as_error_t err = bvh_builder_init(&b, mesh, args, 2);
     if (err != AS_OK) return err;
     b.exact_max = BVH_EXACT_MAX;
+    b.ref_bins = as_block_take(sizeof(uint32_t) * (size_t)(b.ref_count ? b.ref_count : 1), 0, "BVH reference bins");
+    if (!b.ref_bins) {
+        err = as_get_error();
+        bvh_builder_free(&b);
+        return err;
+    }
     const int32_t root = bvh_build_inplace(&b, binned_split);
     err = bvh_builder_finish(&b, root, AS_BUILDER_BVH_SAH_BINNED, s, t_start);
     bvh_builder_free(&b);

@@ -712,10 +712,10 @@ static int sbvh_split(sbvh_ctx *ctx, sbvh_mem *m, const bvh_box *node_box, bvh_r
         }
     } else if (threads > 1) {
         const bvh_box cb = root ? b->root_cbox : bvh_refs_centroid2_box(refs, count);
-        os = bvh_find_object_split_mt(refs, count, &cb, nb, threads);
+        os = bvh_find_object_split_mt(refs, count, &cb, nb, threads, NULL);
     } else {
         const bvh_box cb = bvh_refs_centroid2_box(refs, count);
-        os = bvh_find_object_split(refs, count, &cb, nb);
+        os = bvh_find_object_split(refs, count, &cb, nb, NULL);
     }
     double best_cost = os.axis >= 0 ? os.cost : INFINITY;
     spatial_split ss;
