@@ -269,6 +269,12 @@ static inline float select_float(int c, float a, float b)
     return a;
 }
 
+#if defined(__SSE2__)
+/* A lane mask of c, and a where m is set and b elsewhere, in both lanes. */
+static inline __m128d mask2(int c) { return _mm_castsi128_pd(_mm_set1_epi64x(-(long long)(c != 0))); }
+static inline __m128d select2(__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); }
+#endif
+
 static inline double min_double(double a, double b) { return a < b ? a : b; }
 static inline double max_double(double a, double b) { return a > b ? a : b; }
 
@@ -466,8 +472,50 @@ static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float
     int cnt;
     const double (*v)[3] = clip_triangle(&tris[old->id], node_box, poly, &cnt);
     double lo[2][3], hi[2][3];
-    for (int k = 0; k < 3; ++k) lo[0][k] = lo[1][k] = INFINITY, hi[0][k] = hi[1][k] = -INFINITY;
     int below = 0, above = 0;
+#if defined(__SSE2__)
+    /* The plain loop's steps below, two coordinates per vector: (x, y) in
+     * one, (z, unused) in the other. Selecting through integer masks, three
+     * coordinates at a time, took most of this function's instructions. */
+    const __m128d inf = _mm_set1_pd(INFINITY), ninf = _mm_set1_pd(-INFINITY), at = _mm_set1_pd((double)pos);
+    const __m128d on_xy = _mm_castsi128_pd(_mm_set_epi64x(axis == 1 ? -1 : 0, axis == 0 ? -1 : 0));
+    const __m128d on_z = _mm_castsi128_pd(_mm_set_epi64x(0, axis == 2 ? -1 : 0));
+    __m128d lo0_xy = inf, lo0_z = inf, hi0_xy = ninf, hi0_z = ninf, lo1_xy = inf, lo1_z = inf, hi1_xy = ninf,
+            hi1_z = ninf;
+    for (int i = 0; i < cnt; ++i) {
+        const double *p = v[i], *q = v[i + 1 < cnt ? i + 1 : 0];
+        const double dp = p[axis] - pos, dq = q[axis] - pos;
+        const int l = dp <= 0, r = dp >= 0, x = ((dp > 0) & (dq < 0)) | ((dp < 0) & (dq > 0));
+        const double s = dp / select_double(x, dp - dq, 1.0); /* as in clip_triangle */
+        const __m128d p_xy = _mm_loadu_pd(p), p_z = _mm_load_sd(p + 2), sv = _mm_set1_pd(s);
+        __m128d c_xy = _mm_add_pd(p_xy, _mm_mul_pd(sv, _mm_sub_pd(_mm_loadu_pd(q), p_xy)));
+        __m128d c_z = _mm_add_pd(p_z, _mm_mul_pd(sv, _mm_sub_pd(_mm_load_sd(q + 2), p_z)));
+        c_xy = select2(on_xy, at, c_xy);
+        c_z = select2(on_z, at, c_z);
+        const __m128d xm = mask2(x), lm = mask2(l), rm = mask2(r);
+        const __m128d cl_xy = select2(xm, c_xy, inf), cl_z = select2(xm, c_z, inf);
+        const __m128d ch_xy = select2(xm, c_xy, ninf), ch_z = select2(xm, c_z, ninf);
+        lo0_xy = _mm_min_pd(lo0_xy, _mm_min_pd(select2(lm, p_xy, inf), cl_xy));
+        lo0_z = _mm_min_pd(lo0_z, _mm_min_pd(select2(lm, p_z, inf), cl_z));
+        hi0_xy = _mm_max_pd(hi0_xy, _mm_max_pd(select2(lm, p_xy, ninf), ch_xy));
+        hi0_z = _mm_max_pd(hi0_z, _mm_max_pd(select2(lm, p_z, ninf), ch_z));
+        lo1_xy = _mm_min_pd(lo1_xy, _mm_min_pd(select2(rm, p_xy, inf), cl_xy));
+        lo1_z = _mm_min_pd(lo1_z, _mm_min_pd(select2(rm, p_z, inf), cl_z));
+        hi1_xy = _mm_max_pd(hi1_xy, _mm_max_pd(select2(rm, p_xy, ninf), ch_xy));
+        hi1_z = _mm_max_pd(hi1_z, _mm_max_pd(select2(rm, p_z, ninf), ch_z));
+        below |= l | x;
+        above |= r | x;
+    }
+    _mm_storeu_pd(lo[0], lo0_xy);
+    _mm_store_sd(lo[0] + 2, lo0_z);
+    _mm_storeu_pd(hi[0], hi0_xy);
+    _mm_store_sd(hi[0] + 2, hi0_z);
+    _mm_storeu_pd(lo[1], lo1_xy);
+    _mm_store_sd(lo[1] + 2, lo1_z);
+    _mm_storeu_pd(hi[1], hi1_xy);
+    _mm_store_sd(hi[1] + 2, hi1_z);
+#else
+    for (int k = 0; k < 3; ++k) lo[0][k] = lo[1][k] = INFINITY, hi[0][k] = hi[1][k] = -INFINITY;
     for (int i = 0; i < cnt; ++i) {
         const double *p = v[i], *q = v[i + 1 < cnt ? i + 1 : 0];
         const double dp = p[axis] - pos, dq = q[axis] - pos;
@@ -486,6 +534,7 @@ static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float
         below |= l | x;
         above |= r | x;
     }
+#endif
     clipped_ref(old, box[0], below ? lo[0] : NULL, hi[0], out[0]);
     clipped_ref(old, box[1], above ? lo[1] : NULL, hi[1], out[1]);
 }

@@ -1504,12 +1504,32 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
         const double low = (double)price_small_axis(sa, &sp, c->small_sse2_only) * (1.0 + SWEEP_MARGIN);
         sweep_best b = {limit, limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
         if (low < b.threshold) b.threshold = low;
-        for (uint32_t j = 0; j < sa->n_cand; ++j) {
-            if (filter && !((double)sa->cost[j] <= b.threshold)) continue;
-            /* The sweep's position of a group: a key, in which -0 is 0. */
-            const float pos = sa->cand[j] == 0.0f ? 0.0f : sa->cand[j];
-            price_plane_exactly(pos, sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep, &b);
-        }
+#if defined(__SSE2__)
+        if (filter) {
+            /* As the sweep's filter: four single-precision costs against
+             * the threshold rounded up to a float in one compare, the few
+             * that pass tested again exactly. The costs past the last
+             * candidate are infinite (price_small_axis). */
+            for (uint32_t q = 0; q < sa->n_cand; q += 4) {
+                float t = (float)b.threshold;
+                if ((double)t < b.threshold) t = as_float_next_up(t);
+                unsigned lanes = (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), _mm_set1_ps(t)));
+                while (lanes) {
+                    const uint32_t j = q + (uint32_t)__builtin_ctz(lanes);
+                    lanes &= lanes - 1u;
+                    if (!((double)sa->cost[j] <= b.threshold)) continue;
+                    /* The sweep's position of a group: a key, in which -0 is 0. */
+                    const float pos = sa->cand[j] == 0.0f ? 0.0f : sa->cand[j];
+                    price_plane_exactly(pos, sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep, &b);
+                }
+            }
+        } else
+#endif
+            for (uint32_t j = 0; j < sa->n_cand; ++j) {
+                if (filter && !((double)sa->cost[j] <= b.threshold)) continue;
+                const float pos = sa->cand[j] == 0.0f ? 0.0f : sa->cand[j];
+                price_plane_exactly(pos, sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep, &b);
+            }
         if (b.found && b.cost < best) {
             best = b.cost;
             out->axis = axis;
