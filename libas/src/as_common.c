@@ -15,6 +15,22 @@
 unsigned as_version_number(void) { return AS_VERSION_NUMBER; }
 const char *as_version_string(void) { return AS_VERSION_STRING; }
 
+int as_cpu_has_avx2(void)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+    static atomic_int known = 0; /* 0: not asked, 1: no, 2: yes */
+    int k = atomic_load_explicit(&known, memory_order_relaxed);
+    if (!k) {
+        __builtin_cpu_init();
+        k = __builtin_cpu_supports("avx2") ? 2 : 1;
+        atomic_store_explicit(&known, k, memory_order_relaxed);
+    }
+    return k == 2;
+#else
+    return 0;
+#endif
+}
+
 void *as_malloc(size_t bytes, const char *what)
 {
     void *p = malloc(bytes ? bytes : 1);

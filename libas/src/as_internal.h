@@ -25,6 +25,11 @@ extern "C" {
 as_error_t as_set_error(as_error_t code, const char *fmt, ...) AS_PRINTF(2, 3);
 as_error_t as_set_errorv(as_error_t code, const char *fmt, va_list ap);
 
+/* Whether this processor runs AVX2 code (asked once): the builders' few
+ * AVX2 loops are chosen at run time, the library being built for the
+ * x86-64 baseline. 0 elsewhere than x86-64 with GCC or Clang. */
+int as_cpu_has_avx2(void);
+
 /* malloc/calloc that set AS_ERROR_OUT_OF_MEMORY (naming `what`) on failure. */
 void *as_malloc(size_t bytes, const char *what);
 void *as_calloc(size_t count, size_t size, const char *what);

@@ -198,11 +198,53 @@ static void exact_node(exact_state *st, int32_t node, uint32_t s, uint32_t n, ui
     bvh_node_complete(b, node, 0);
 }
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define EXACT_SORT_AVX2 1
+#include <immintrin.h>
+/* sort_axis's ranks on processors with AVX2 (chosen at run time), eight
+ * comparisons per instruction: the same ranks, so the same order. It was
+ * four fifths of the subtrees' set-up (about 80 M instructions in a build
+ * of staircase). The keys are held in four vectors, the lanes past the
+ * last padded with NaN, which compares neither below nor equal (quiet
+ * comparisons: no floating-point flag is raised). */
+__attribute__((target("avx2"))) static void sort_axis_avx2(const float *k, uint32_t n, uint8_t *order)
+{
+    _Static_assert(BVH_EXACT_MAX <= 32, "four vectors of keys");
+    float padded[32];
+    for (uint32_t j = 0; j < 32; ++j) padded[j] = j < n ? k[j] : __builtin_nanf("");
+    const __m256 k0 = _mm256_loadu_ps(padded), k1 = _mm256_loadu_ps(padded + 8), k2 = _mm256_loadu_ps(padded + 16),
+                 k3 = _mm256_loadu_ps(padded + 24);
+    const __m256i j0 = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), eight = _mm256_set1_epi32(8);
+    const __m256i j1 = _mm256_add_epi32(j0, eight), j2 = _mm256_add_epi32(j1, eight), j3 = _mm256_add_epi32(j2, eight);
+    for (uint32_t i = 0; i < n; ++i) {
+        const __m256 ki = _mm256_set1_ps(k[i]);
+        const __m256i iv = _mm256_set1_epi32((int)i);
+        /* Lanes j where (k[j], j) < (k[i], i): -1 each. */
+#define EXACT_BEFORE(kj, jv)                                                                                          \
+    _mm256_or_si256(_mm256_castps_si256(_mm256_cmp_ps(kj, ki, _CMP_LT_OQ)),                                          \
+                    _mm256_and_si256(_mm256_castps_si256(_mm256_cmp_ps(kj, ki, _CMP_EQ_OQ)), _mm256_cmpgt_epi32(iv, jv)))
+        __m256i acc = _mm256_add_epi32(EXACT_BEFORE(k0, j0), EXACT_BEFORE(k1, j1));
+        if (n > 16) acc = _mm256_add_epi32(acc, _mm256_add_epi32(EXACT_BEFORE(k2, j2), EXACT_BEFORE(k3, j3)));
+#undef EXACT_BEFORE
+        __m128i s = _mm_add_epi32(_mm256_castsi256_si128(acc), _mm256_extracti128_si256(acc, 1));
+        s = _mm_add_epi32(s, _mm_shuffle_epi32(s, _MM_SHUFFLE(1, 0, 3, 2)));
+        s = _mm_add_epi32(s, _mm_shuffle_epi32(s, _MM_SHUFFLE(2, 3, 0, 1)));
+        order[(uint32_t)-_mm_cvtsi128_si32(s)] = (uint8_t)i;
+    }
+}
+#endif
+
 /* order[0, n) = 0..n-1 sorted by (k[i], i): each one's rank is counted,
  * without branches on the data, which at these sizes costs less than a
  * sort's mispredicted branches. */
 static void sort_axis(const float *k, uint32_t n, uint8_t *order)
 {
+#if defined(EXACT_SORT_AVX2)
+    if (as_cpu_has_avx2()) {
+        sort_axis_avx2(k, n, order);
+        return;
+    }
+#endif
     for (uint32_t i = 0; i < n; ++i) {
         const float ki = k[i];
         uint32_t rank = 0;

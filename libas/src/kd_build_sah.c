@@ -1343,25 +1343,12 @@ __attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s
     const __m128 four = _mm_min_ps(_mm256_castps256_ps128(low), _mm256_extractf128_ps(low, 1));
     return lowest4(four);
 }
-
-/* Whether this processor runs the AVX2 form (asked once). */
-static int small_avx2(void)
-{
-    static atomic_int known = 0; /* 0: not asked, 1: no, 2: yes */
-    int k = atomic_load_explicit(&known, memory_order_relaxed);
-    if (!k) {
-        __builtin_cpu_init();
-        k = __builtin_cpu_supports("avx2") ? 2 : 1;
-        atomic_store_explicit(&known, k, memory_order_relaxed);
-    }
-    return k == 2;
-}
 #endif
 
 static float price_small_axis(small_axis *s, const sweep_prices *sp, int sse2_only)
 {
 #if defined(KD_SMALL_AVX2)
-    if (!sse2_only && small_avx2()) return price_small_axis_avx2(s, sp);
+    if (!sse2_only && as_cpu_has_avx2()) return price_small_axis_avx2(s, sp);
 #endif
     (void)sse2_only;
 #if defined(__SSE2__)
