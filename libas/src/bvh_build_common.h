@@ -393,6 +393,11 @@ typedef int (*bvh_split_fn)(bvh_builder *b, const bvh_range *node, unsigned thre
  * references into the leaves' order; the leaves point into `refs`, which
  * must outlive the tree. */
 #define BVH_EXACT_MAX 32
+/* The order in which the exact subtree builder takes n (at most
+ * BVH_EXACT_MAX) keys: 0..n-1 by (keys[i], i), into order. plain_only
+ * picks the form without AVX2 where the processor would run the other.
+ * Returns 0 when n is too large. For tests: both forms give one order. */
+int bvh_exact_order(const float *keys, uint32_t n, uint8_t *order, int plain_only);
 void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, bvh_ref *refs, uint32_t count,
                              const bvh_box *box, uint32_t depth);
 

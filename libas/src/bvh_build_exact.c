@@ -237,10 +237,10 @@ __attribute__((target("avx2"))) static void sort_axis_avx2(const float *k, uint3
 /* order[0, n) = 0..n-1 sorted by (k[i], i): each one's rank is counted,
  * without branches on the data, which at these sizes costs less than a
  * sort's mispredicted branches. */
-static void sort_axis(const float *k, uint32_t n, uint8_t *order)
+static void sort_axis(const float *k, uint32_t n, uint8_t *order, int plain_only)
 {
 #if defined(EXACT_SORT_AVX2)
-    if (as_cpu_has_avx2()) {
+    if (!plain_only && as_cpu_has_avx2()) {
         sort_axis_avx2(k, n, order);
         return;
     }
@@ -273,8 +273,15 @@ void bvh_build_exact_subtree(bvh_builder *b, bvh_local *loc, int32_t node, bvh_r
         v4f_store(c, v4f_add(st.lo[i], st.hi[i]));
         for (int axis = 0; axis < 3; ++axis) keys[axis][i] = c[axis];
     }
-    for (int axis = 0; axis < 3; ++axis) sort_axis(keys[axis], n, st.ord[axis]);
+    for (int axis = 0; axis < 3; ++axis) sort_axis(keys[axis], n, st.ord[axis], 0);
     const v4f blo = v4f_set3(box->lo), bhi = v4f_set3(box->hi);
     exact_node(&st, node, 0, n, depth, blo, bhi, (const float(*)[BVH_EXACT_MAX])keys);
     for (uint32_t i = 0; i < n; ++i) refs[i] = st.copy[st.leaf_order[i]];
+}
+
+int bvh_exact_order(const float *keys, uint32_t n, uint8_t *order, int plain_only)
+{
+    if (n > BVH_EXACT_MAX) return 0;
+    sort_axis(keys, n, order, plain_only);
+    return 1;
 }
