@@ -35,8 +35,8 @@ static void args_for(as_build_args_t *args)
 }
 
 /* Triangles of about `size` around random points of the unit cube; every
- * `big_every`-th one (0: none) 30 times larger. */
-static as_mesh_t *soup_mixed(uint64_t seed, uint32_t n, float size, uint32_t big_every)
+ * `big_every`-th one (0: none) `big_scale` times larger. */
+static as_mesh_t *soup_scaled(uint64_t seed, uint32_t n, float size, uint32_t big_every, float big_scale)
 {
     uint64_t st = seed;
     float *p = malloc(sizeof(float) * 9 * n);
@@ -44,7 +44,7 @@ static as_mesh_t *soup_mixed(uint64_t seed, uint32_t n, float size, uint32_t big
     for (uint32_t t = 0; t < n; ++t) {
         float c[3];
         for (int k = 0; k < 3; ++k) c[k] = (float)ref_rand01(&st);
-        const float sz = big_every && t % big_every == 0 ? 30.0f * size : size;
+        const float sz = big_every && t % big_every == 0 ? big_scale * size : size;
         for (int v = 0; v < 9; ++v) p[9 * t + v] = c[v % 3] + sz * (float)(ref_rand01(&st) - 0.5);
         for (int v = 0; v < 3; ++v) ix[3 * t + v] = 3 * t + v;
     }
@@ -52,6 +52,11 @@ static as_mesh_t *soup_mixed(uint64_t seed, uint32_t n, float size, uint32_t big
     free(p);
     free(ix);
     return m;
+}
+
+static as_mesh_t *soup_mixed(uint64_t seed, uint32_t n, float size, uint32_t big_every)
+{
+    return soup_scaled(seed, n, size, big_every, 30.0f);
 }
 
 static as_mesh_t *soup(uint64_t seed, uint32_t n, float size) { return soup_mixed(seed, n, size, 0); }
@@ -90,14 +95,18 @@ static size_t disagreements(const as_mesh_t *m, const as_structure_t *s, const a
 
 static void build_is_byte_identical_for_1_2_3_and_16_threads(void)
 {
-    as_mesh_t *meshes[2] = {soup(7, 60000, 0.02f), NULL};
+    /* The third: one triangle in 500 a hundred times larger, whose boxes
+     * reach tens of thousands of grid cells (from four threads the grid's
+     * first pass cuts such triangles into slabs and their blocks into
+     * runs). */
+    as_mesh_t *meshes[3] = {soup(7, 60000, 0.02f), NULL, soup_scaled(11, 60000, 0.02f, 500, 100.0f)};
     char buf[4096];
     snprintf(buf, sizeof buf, "%s/scenes/bunny.drc", AS_SOURCE_DIR);
     meshes[1] = as_mesh_import(buf);
-    CHECK(meshes[0] && meshes[1]);
+    CHECK(meshes[0] && meshes[1] && meshes[2]);
     /* Sixteen threads: more ranges of grid cells than three make. */
     const unsigned threads[] = {1, 2, 3, 16};
-    for (int k = 0; k < 2; ++k) {
+    for (int k = 0; k < 3; ++k) {
         unsigned char *first = NULL;
         size_t first_size = 0;
         for (size_t t = 0; t < sizeof threads / sizeof threads[0] && meshes[k]; ++t) {

@@ -45,6 +45,16 @@ typedef struct grid_pairs {
     uint32_t *range_at;
 } grid_pairs;
 
+/* A unit of pass 1: triangles [first, end) with all their cells, or one
+ * large triangle (end = first + 1) with only its cells whose index along
+ * `axis` lies in [lo, hi] (a slab). */
+typedef struct grid_unit {
+    uint32_t first, end;
+    uint32_t lo, hi;   /* hi UINT32_MAX: every cell */
+    int axis;
+    int last;          /* the unit that counts its triangles in the progress */
+} grid_unit;
+
 typedef struct grid_job {
     const as_mesh_t *mesh;
     const as_grid_header_t *g;
@@ -62,7 +72,9 @@ typedef struct grid_job {
     double budget;                /* most references allowed */
     atomic_int over;              /* pass 1 found more than the budget */
     atomic_int oom;
-    grid_pairs *pairs;            /* one per block */
+    grid_unit *units;             /* pass 1's work, in triangle order */
+    size_t unit_count;
+    grid_pairs *pairs;            /* one per unit */
     unsigned ranges;              /* a power of two; a cell's range is grid_range_of */
     /* Every wall is finite. Walls past float's range (a scene wider than
      * FLT_MAX) are infinite, the overlap test passes every cell between
@@ -232,20 +244,38 @@ static int plane_line(const as_grid_header_t *g, const plane_lines *pl, uint32_t
     return 1;
 }
 
-/* Pass 1 over a block: the cells of each triangle, kept as (cell, triangle)
+/* The cells [c0, c1] that triangle t's box reaches, grown by the pad (which
+ * bounds every cell's pad and the rounding of the walls); its vertices in
+ * v. Returns whether the box is within one cell. */
+static int triangle_cells(const grid_job *job, uint32_t t, const float *v[3], uint32_t c0[3], uint32_t c1[3])
+{
+    const as_mesh_t *m = job->mesh;
+    const uint32_t *ix = m->indices + 3 * (size_t)t;
+    for (int j = 0; j < 3; ++j) v[j] = m->positions + 3 * (size_t)ix[j];
+    int single = 1;
+    for (int k = 0; k < 3; ++k) {
+        const float lo = min3f(v[0][k], v[1][k], v[2][k]), hi = max3f(v[0][k], v[1][k], v[2][k]);
+        c0[k] = clamp_cell(job->g, k, (double)lo - job->pad);
+        c1[k] = clamp_cell(job->g, k, (double)hi + job->pad);
+        single &= c0[k] == c1[k];
+    }
+    return single;
+}
+
+/* Pass 1 over a unit: the cells of each triangle, kept as (cell, triangle)
  * pairs. */
-static void grid_block(void *user, size_t block)
+static void grid_block(void *user, size_t unit)
 {
     grid_job *job = user;
     if (atomic_load(&job->cancelled)) return;
-    /* The block's pairs are grown in a local copy and stored at the end:
-     * neighbouring blocks' entries share cache lines, and the threads
+    /* The unit's pairs are grown in a local copy and stored at the end:
+     * neighbouring units' entries share cache lines, and the threads
      * working on them would trade the line at every push. */
+    const size_t block = unit;
     grid_pairs local = job->pairs[block], *pairs = &local;
-    const as_mesh_t *m = job->mesh;
     const as_grid_header_t *g = job->g;
-    const uint32_t begin = (uint32_t)(block * BLOCK);
-    const uint32_t end = begin + BLOCK < m->triangle_count ? begin + BLOCK : m->triangle_count;
+    const grid_unit *un = &job->units[unit];
+    const uint32_t begin = un->first, end = un->end;
     uint64_t local_refs = 0;
     for (uint32_t t = begin; t < end; ++t) {
         if (job->skip[t]) continue;
@@ -258,24 +288,21 @@ static void grid_block(void *user, size_t block)
                 return;
             }
         }
-        const uint32_t *ix = m->indices + 3 * (size_t)t;
-        const float *a = m->positions + 3 * (size_t)ix[0], *b = m->positions + 3 * (size_t)ix[1],
-                    *c = m->positions + 3 * (size_t)ix[2];
+        const float *v[3];
         uint32_t c0[3], c1[3];
-        int single = 1;
-        for (int k = 0; k < 3; ++k) {
-            const float lo = min3f(a[k], b[k], c[k]), hi = max3f(a[k], b[k], c[k]);
-            /* The cells the box reaches, grown by the pad (which bounds every
-             * cell's pad and the rounding of the walls). */
-            c0[k] = clamp_cell(g, k, (double)lo - job->pad);
-            c1[k] = clamp_cell(g, k, (double)hi + job->pad);
-            single &= c0[k] == c1[k];
-        }
+        const int single = triangle_cells(job, t, v, c0, c1);
+        const float *a = v[0], *b = v[1], *c = v[2];
         /* The cells of the box line by line along axis s, the normal's
          * largest component; a box of many cells tests only the part of
          * each line that the triangle's plane can reach (plane_line). */
         plane_lines pl = {0, {0, 0, 0}, 0, 0};
         const int lines = !single && plane_lines_init(job, a, b, c, c0, c1, &pl);
+        if (un->hi != UINT32_MAX) {
+            /* A slab of a large triangle: the other slabs are other units. */
+            if (un->lo > c0[un->axis]) c0[un->axis] = un->lo;
+            if (un->hi < c1[un->axis]) c1[un->axis] = un->hi;
+            if (c0[un->axis] > c1[un->axis]) continue;
+        }
         const int s = lines ? pl.s : 0, u = (s + 1) % 3, w = (s + 2) % 3;
         uint32_t at[3];
         for (at[w] = c0[w]; at[w] <= c1[w]; ++at[w])
@@ -301,10 +328,133 @@ static void grid_block(void *user, size_t block)
     if (!group_by_range(job, &local)) atomic_store(&job->oom, 1);
     job->pairs[block] = local;
     atomic_fetch_add(&job->refs, local_refs);
-    report_progress(job, end - begin);
+    if (un->last) report_progress(job, end - begin);
 }
 
-/* A pass over every block's pairs of one range of cells, in block order:
+/* Pass 1's units. With few threads, blocks of BLOCK triangles. From
+ * GRID_SPLIT_MIN_THREADS threads the work is planned first: a block whose
+ * triangles' boxes reach more than UNIT_CELLS cells in all is cut into
+ * runs of triangles reaching about that many, and a triangle that alone
+ * reaches more is cut into slabs along its box's longest axis (in cells).
+ * One block of staircase held 14% of its references (a few large
+ * triangles), so one thread did that much of the pass while the others
+ * had finished. Units follow the triangle order, and a slab's cells are
+ * its triangle's, each once: the pairs per cell come out in the order of
+ * fixed blocks, and so PRIM. */
+#define UNIT_CELLS 16384
+#define GRID_SPLIT_MIN_THREADS 4
+#define SLABS_MAX 64
+
+typedef struct unit_cost_job {
+    const grid_job *job;
+    uint32_t *cells;        /* per triangle: the cells its box reaches, 0 for a zero-area one */
+    uint64_t *block_cells;  /* per block: their sum */
+} unit_cost_job;
+
+static void unit_cost_block(void *user, size_t block)
+{
+    unit_cost_job *u = user;
+    const grid_job *job = u->job;
+    const uint32_t nt = job->mesh->triangle_count, begin = (uint32_t)(block * BLOCK);
+    const uint32_t end = begin + BLOCK < nt ? begin + BLOCK : nt;
+    uint64_t sum = 0;
+    for (uint32_t t = begin; t < end; ++t) {
+        uint64_t n = 0;
+        if (!job->skip[t]) {
+            const float *v[3];
+            uint32_t c0[3], c1[3];
+            triangle_cells(job, t, v, c0, c1);
+            n = (uint64_t)(c1[0] - c0[0] + 1) * (c1[1] - c0[1] + 1) * (c1[2] - c0[2] + 1);
+        }
+        u->cells[t] = n > UINT32_MAX ? UINT32_MAX : (uint32_t)n;
+        sum += u->cells[t];
+    }
+    u->block_cells[block] = sum;
+}
+
+static int unit_push(grid_job *job, size_t *cap, grid_unit u)
+{
+    if (job->unit_count == *cap) {
+        const size_t c = *cap ? 2 * *cap : 64;
+        grid_unit *g = realloc(job->units, sizeof *g * c);
+        if (!g) return 0;
+        job->units = g;
+        *cap = c;
+    }
+    job->units[job->unit_count++] = u;
+    return 1;
+}
+
+/* Fills job->units for the current grid; 0 when out of memory. */
+static int plan_units(grid_job *job, unsigned threads, size_t blocks)
+{
+    const uint32_t nt = job->mesh->triangle_count;
+    job->unit_count = 0;
+    size_t cap = 0;
+    free(job->units);
+    job->units = NULL;
+    uint32_t *cells = NULL;
+    uint64_t *block_cells = NULL;
+    if (threads >= GRID_SPLIT_MIN_THREADS && blocks > 1) {
+        cells = malloc(sizeof(uint32_t) * nt);
+        block_cells = malloc(sizeof(uint64_t) * blocks);
+        if (cells && block_cells) {
+            unit_cost_job uj = {job, cells, block_cells};
+            as_parallel_for(threads, blocks, unit_cost_block, &uj);
+        } else {
+            /* Without the plan, blocks as with few threads. */
+            free(cells);
+            free(block_cells);
+            cells = NULL;
+            block_cells = NULL;
+        }
+    }
+    int ok = 1;
+    for (size_t bk = 0; bk < blocks && ok; ++bk) {
+        const uint32_t begin = (uint32_t)(bk * BLOCK), end = begin + BLOCK < nt ? begin + BLOCK : nt;
+        if (!cells || block_cells[bk] <= UNIT_CELLS) {
+            ok = unit_push(job, &cap, (grid_unit){begin, end, 0, UINT32_MAX, 0, 1});
+            continue;
+        }
+        uint32_t first = begin;
+        uint64_t sum = 0;
+        for (uint32_t t = begin; t < end && ok; ++t) {
+            if (cells[t] > UNIT_CELLS) {
+                if (t > first) ok = unit_push(job, &cap, (grid_unit){first, t, 0, UINT32_MAX, 0, 1});
+                const float *v[3];
+                uint32_t c0[3], c1[3];
+                triangle_cells(job, t, v, c0, c1);
+                int axis = 0;
+                for (int k = 1; k < 3; ++k)
+                    if (c1[k] - c0[k] > c1[axis] - c0[axis]) axis = k;
+                const uint64_t span = (uint64_t)c1[axis] - c0[axis] + 1;
+                uint64_t slabs = (cells[t] + (uint64_t)UNIT_CELLS - 1) / UNIT_CELLS;
+                if (slabs > span) slabs = span;
+                if (slabs > SLABS_MAX) slabs = SLABS_MAX;
+                for (uint64_t k = 0; k < slabs && ok; ++k) {
+                    const uint32_t lo = c0[axis] + (uint32_t)(span * k / slabs);
+                    const uint32_t hi = c0[axis] + (uint32_t)(span * (k + 1) / slabs) - 1;
+                    ok = unit_push(job, &cap, (grid_unit){t, t + 1, lo, hi, axis, k + 1 == slabs});
+                }
+                first = t + 1;
+                sum = 0;
+                continue;
+            }
+            if (sum + cells[t] > UNIT_CELLS && t > first) {
+                ok = unit_push(job, &cap, (grid_unit){first, t, 0, UINT32_MAX, 0, 1});
+                first = t;
+                sum = 0;
+            }
+            sum += cells[t];
+        }
+        if (ok && end > first) ok = unit_push(job, &cap, (grid_unit){first, end, 0, UINT32_MAX, 0, 1});
+    }
+    free(cells);
+    free(block_cells);
+    return ok;
+}
+
+/* A pass over every unit's pairs of one range of cells, in unit order:
  * each cell belongs to one range, so no two threads touch its count or
  * cursor (atomic adds on neighbouring cells from several threads cost more
  * than the pass), and each range's pairs are read once. Counting adds one
@@ -313,7 +463,7 @@ static void grid_block(void *user, size_t block)
  * which is PRIM's order whatever the thread count. */
 typedef struct range_job {
     grid_job *job;
-    size_t blocks;
+    size_t blocks;     /* units */
     int fill;          /* 0: count, 1: fill job->prims */
 } range_job;
 
@@ -537,8 +687,6 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.total = 2 * (uint64_t)(nt ? nt : 1);
     job.pad = 4.0 * as_spatial_pad(g->lo, g->hi);
     job.budget = budget < (double)0xFFFFFFF0u ? budget : (double)0xFFFFFFF0u;
-    job.pairs = calloc(blocks ? blocks : 1, sizeof *job.pairs);
-    if (!job.pairs) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
     uint64_t cells = 1;
     for (;;) {
         dims_for(ext, active, scale, g->dims);
@@ -569,13 +717,19 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
         atomic_store(&job.over, 0);
         atomic_store(&job.refs, 0);
         atomic_store(&job.done, 0);
-        free_pairs(job.pairs, blocks);
-        as_parallel_for(threads, blocks, grid_block, &job);
+        free_pairs(job.pairs, job.unit_count);
+        free(job.pairs);
+        job.pairs = NULL;
+        if (!plan_units(&job, threads, blocks) || !(job.pairs = calloc(job.unit_count ? job.unit_count : 1, sizeof *job.pairs))) {
+            err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build");
+            goto done;
+        }
+        as_parallel_for(threads, job.unit_count, grid_block, &job);
         if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
         if (atomic_load(&job.oom)) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
         const uint64_t refs = atomic_load(&job.refs);
         if (!atomic_load(&job.over) && (double)refs <= job.budget) {
-            const range_job count = {&job, blocks, 0};
+            const range_job count = {&job, job.unit_count, 0};
             as_parallel_for(threads, job.ranges, grid_range_pass, (void *)&count);
             break;
         }
@@ -610,9 +764,9 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     job.pass = 2;
     job.prims = prims;
     atomic_store(&job.done, 0);
-    const range_job fill = {&job, blocks, 1};
+    const range_job fill = {&job, job.unit_count, 1};
     as_parallel_for(threads, job.ranges, grid_range_pass, (void *)&fill);
-    free_pairs(job.pairs, blocks);
+    free_pairs(job.pairs, job.unit_count);
     if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
 
     as_spatial_meta(s, mesh, args, AS_STRUCT_GRID, AS_LAYOUT_GRID, AS_GRID_LAYOUT_VERSION, AS_BUILDER_GRID);
@@ -635,8 +789,9 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
     s->build_ms = as_now_ms() - t_start;
 done:
     pthread_mutex_destroy(&job.lock);
-    free_pairs(job.pairs, blocks);
+    free_pairs(job.pairs, job.unit_count);
     free(job.pairs);
+    free(job.units);
     free(skip);
     counts_give(counts, counts_cells);
     free(g);
