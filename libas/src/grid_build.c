@@ -9,12 +9,13 @@
  *
  * Each triangle goes to every cell its box covers that it overlaps (exact
  * triangle/box test, Akenine-Moller 2001, with a few-ulp pad). Build in
- * parallel passes over fixed blocks of triangles: find each triangle's cells,
- * keeping the (cell, triangle) pairs of each block, grouped by range of
+ * parallel passes over units of triangles (blocks, cut finer where their
+ * triangles reach many cells: plan_units): find each triangle's cells,
+ * keeping the (cell, triangle) pairs of each unit, grouped by range of
  * cells, so the overlap tests run once; count per cell, a range of cells at
- * a time over its pairs in every block; a sequential prefix sum into GRDC;
- * fill from the pairs the same way, in triangle order, so PRIM is the same
- * whatever the thread count. */
+ * a time over its pairs in every unit; a prefix sum into GRDC; fill from
+ * the pairs the same way, in triangle order, so PRIM is the same whatever
+ * the thread count. */
 #include "spatial_common.h"
 #include "grid_layout.h"
 
