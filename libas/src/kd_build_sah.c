@@ -1292,12 +1292,6 @@ static inline __m128 price_small_four(small_axis *s, uint32_t j, __m128 pos, __m
  * chooser is this loop. */
 __attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s, const sweep_prices *sp)
 {
-    __m256 lo8[SMALL_NODE_REFS], hi8[SMALL_NODE_REFS], flat8[SMALL_NODE_REFS];
-    for (uint32_t k = 0; k < s->n_lo; ++k) {
-        lo8[k] = _mm256_set1_ps(s->lo[k]);
-        hi8[k] = _mm256_set1_ps(s->hi[k]);
-    }
-    for (uint32_t k = 0; k < s->n_flat; ++k) flat8[k] = _mm256_set1_ps(s->flat[k]);
     const __m256i zero = _mm256_setzero_si256();
     const __m256 inf = _mm256_set1_ps(INFINITY), bonus = _mm256_set1_ps(0.8f), one = _mm256_set1_ps(1.0f);
     const __m256 face = _mm256_set1_ps(sp->face), rim = _mm256_set1_ps(sp->rim), ct = _mm256_set1_ps(sp->ct),
@@ -1307,14 +1301,17 @@ __attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s
     for (uint32_t j = 0; j < s->n_cand; j += 8) {
         const __m256 pos = _mm256_loadu_ps(&s->cand[j]);
         __m256i nl0 = zero, nr0 = zero, p_eq = zero;
+        /* Each bound broadcast from memory in the compare's load: a
+         * broadcast costs what a load does. */
         for (uint32_t k = 0; k < s->n_lo; ++k) {
-            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(lo8[k], pos, _CMP_LE_OQ)));
-            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(hi8[k], pos, _CMP_GE_OQ)));
+            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(_mm256_broadcast_ss(&s->lo[k]), pos, _CMP_LE_OQ)));
+            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(_mm256_broadcast_ss(&s->hi[k]), pos, _CMP_GE_OQ)));
         }
         for (uint32_t k = 0; k < s->n_flat; ++k) {
-            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(flat8[k], pos, _CMP_LT_OQ)));
-            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(flat8[k], pos, _CMP_GT_OQ)));
-            p_eq = _mm256_sub_epi32(p_eq, _mm256_castps_si256(_mm256_cmp_ps(flat8[k], pos, _CMP_EQ_OQ)));
+            const __m256 f = _mm256_broadcast_ss(&s->flat[k]);
+            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(f, pos, _CMP_LT_OQ)));
+            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(f, pos, _CMP_GT_OQ)));
+            p_eq = _mm256_sub_epi32(p_eq, _mm256_castps_si256(_mm256_cmp_ps(f, pos, _CMP_EQ_OQ)));
         }
         /* price_planes4's steps. */
         const __m256i nl = _mm256_add_epi32(nl0, p_eq), nr = _mm256_add_epi32(nr0, p_eq);
