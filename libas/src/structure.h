@@ -61,22 +61,23 @@ void as_structure_add_kept_section(as_structure_t *s, uint32_t tag, void *data, 
 struct as_tri4;
 const struct as_tri4 **as_structure_triangles_by_prim(const as_structure_t *s);
 
-/* 64-byte aligned allocation for section data (from 4 MB: 2 MB aligned and
- * marked for transparent huge pages, and taken from the blocks earlier
- * builds gave back when one fits: as_block_take); free with free(), or
+/* 64-byte aligned allocation for section data (from 1 MB taken from the
+ * blocks earlier builds gave back when one fits: as_block_take; from 4 MB
+ * 2 MB aligned and marked for transparent huge pages); free with free(), or
  * give back with as_block_give(p, bytes, 1). */
 void *as_aligned_alloc(size_t bytes, const char *what);
 
 /* A block of `bytes` for a build's arrays, from the large blocks earlier
  * builds of the process gave back (as_block_give) when one holds `bytes`
- * and is at most twice as large, else fresh (huge: 2 MB aligned and marked
- * for transparent huge pages, as as_aligned_alloc). Its contents are
+ * and is at most twice as large, else fresh (64-byte aligned; huge and 4 MB
+ * or more: 2 MB aligned and marked for transparent huge pages, as
+ * as_aligned_alloc). Its contents are
  * undefined. NULL with the error set when out of memory. Thread-safe. Any
  * block may be freed with free() instead of given back. */
 void *as_block_take(size_t bytes, int huge, const char *what);
 /* Gives back a block from as_block_take or as_aligned_alloc of at least
  * `bytes` (and of the same `huge`): kept for a later as_block_take when it
- * is 4 MB or more (at most 16 blocks and 512 MB counted at the sizes given
+ * is 1 MB or more (at most 16 blocks and 512 MB counted at the sizes given
  * back, which may be half a reused block's; the oldest freed first),
  * else freed. NULL is ignored. Thread-safe. */
 void as_block_give(void *p, size_t bytes, int huge);

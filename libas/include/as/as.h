@@ -295,7 +295,7 @@ as_structure_t *as_structure_load(const char *path, const as_load_args_t *args);
 as_structure_t *as_structure_load_memory(const void *data, size_t size, const char *name,
                                          const as_load_args_t *args);
 
-/* Releases the structure. Its large arrays (4 MB and more) that a build
+/* Releases the structure. Its large arrays (1 MB and more) that a build
  * made go back to a cache of the process, with those that builds used for
  * their work, so that the next build does not fault in fresh pages: at most
  * 16 blocks and 512 MB as the builds asked for them, the oldest freed first
