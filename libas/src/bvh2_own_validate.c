@@ -6,7 +6,6 @@
 #include "trace_gpu.h"
 
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 
 static int box_finite_ordered(const as_bvh2o_node_t *n)
@@ -111,9 +110,8 @@ as_error_t as_bvh2_own_validate(const as_structure_t *s, const char *name)
             references += c->count;
             if (depth + 1 > max_leaf_depth) max_leaf_depth = depth + 1;
             const float b[6] = {c->lo[0], c->hi[0], c->lo[1], c->hi[1], c->lo[2], c->hi[2]};
-            char where[64];
-            snprintf(where, sizeof where, "BVHO node %d", ci);
-            err = as_bvh2_validate_leaf(s, name, tris, tri_count, tri_seen, (uint32_t)~c->child, c->count, b, where);
+            const as_leaf_where where = {"BVHO node", ci, NULL, 0};
+            err = as_bvh2_validate_leaf(s, name, tris, tri_count, tri_seen, (uint32_t)~c->child, c->count, b, &where);
         }
     }
     if (err == AS_OK && reached != node_count)

@@ -45,15 +45,25 @@ as_error_t as_bvh2_validate_tris(const as_structure_t *s, const char *name, cons
     return AS_OK;
 }
 
-as_error_t as_bvh2_validate_leaf(const as_structure_t *s, const char *name, const as_tri4_t *tris, uint64_t tri_count,
-                                 uint8_t *tri_seen, uint64_t first, uint64_t count, const float b[6], const char *where)
+static const char *leaf_where(const as_leaf_where *w, char *buf, size_t size)
 {
+    if (w->slot_label) snprintf(buf, size, "%s %lld %s %d", w->node_label, w->node, w->slot_label, w->slot);
+    else snprintf(buf, size, "%s %lld", w->node_label, w->node);
+    return buf;
+}
+
+as_error_t as_bvh2_validate_leaf(const as_structure_t *s, const char *name, const as_tri4_t *tris, uint64_t tri_count,
+                                 uint8_t *tri_seen, uint64_t first, uint64_t count, const float b[6],
+                                 const as_leaf_where *place)
+{
+    char where[96];
     if (first > tri_count || count > tri_count - first)
         return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %s: leaf triangles [%llu, %llu) outside the %llu of TRI4",
-                            name, where, (unsigned long long)first, (unsigned long long)(first + count),
+                            name, leaf_where(place, where, sizeof where), (unsigned long long)first, (unsigned long long)(first + count),
                             (unsigned long long)tri_count);
     if (!finite6(b[0], b[1], b[2], b[3], b[4], b[5]) || !(b[0] <= b[1] && b[2] <= b[3] && b[4] <= b[5]))
-        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %s (a leaf) has a non-finite or inverted box", name, where);
+        return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: %s (a leaf) has a non-finite or inverted box", name,
+                            leaf_where(place, where, sizeof where));
     /* An SBVH leaf box bounds only the part of a triangle it holds (the
      * reference was clipped): the triangle's box must overlap it. Any other
      * builder's leaf box holds its triangles whole. */
@@ -61,7 +71,7 @@ as_error_t as_bvh2_validate_leaf(const as_structure_t *s, const char *name, cons
     for (uint64_t t = first; t < first + count; ++t) {
         if (tri_seen[t])
             return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 triangle %llu is in two leaves (again under %s)",
-                                name, (unsigned long long)t, where);
+                                name, (unsigned long long)t, leaf_where(place, where, sizeof where));
         tri_seen[t] = 1;
         const as_f4_t *v[3] = {&tris[t].v0, &tris[t].v1, &tris[t].v2};
         float tb[6] = {v[0]->x, v[0]->x, v[0]->y, v[0]->y, v[0]->z, v[0]->z};
@@ -77,7 +87,7 @@ as_error_t as_bvh2_validate_leaf(const as_structure_t *s, const char *name, cons
                                : box_inside(tb, b);
         if (!ok)
             return as_set_error(AS_ERROR_INVALID_STRUCTURE, "%s: TRI4 triangle %llu lies outside the box of its leaf (%s)",
-                                name, (unsigned long long)t, where);
+                                name, (unsigned long long)t, leaf_where(place, where, sizeof where));
     }
     return AS_OK;
 }
@@ -177,9 +187,8 @@ as_error_t as_bvh2_validate(const as_structure_t *s, const char *name)
                 ++leaves;
                 references += count;
                 if (depth + 1 > max_leaf_depth) max_leaf_depth = depth + 1;
-                char where[64];
-                snprintf(where, sizeof where, "node %d child %d", ni, k);
-                err = as_bvh2_validate_leaf(s, name, tris, tri_count, tri_seen, first, count, b, where);
+                const as_leaf_where where = {"node", ni, "child", k};
+                err = as_bvh2_validate_leaf(s, name, tris, tri_count, tri_seen, first, count, b, &where);
             }
         }
     }

@@ -8,7 +8,6 @@
 #include "trace_gpu.h"
 
 #include <math.h>
-#include <stdio.h>
 #include <stdlib.h>
 
 typedef struct cw_entry {
@@ -154,10 +153,9 @@ as_error_t as_cwbvh_validate(const as_structure_t *s, const char *name)
             ++leaves;
             references += count;
             if (e.depth + 1 > max_leaf_depth) max_leaf_depth = e.depth + 1;
-            char where[80];
-            snprintf(where, sizeof where, "CWBV node %u slot %d", e.node, k);
+            const as_leaf_where where = {"CWBV node", e.node, "slot", k};
             err = as_bvh2_validate_leaf(s, name, tris, tri_count, tri_seen, (uint64_t)n->tri_base + (meta & 31u),
-                                        count, clip, where);
+                                        count, clip, &where);
         }
     }
     if (err == AS_OK && reached != node_count)

@@ -210,9 +210,19 @@ as_error_t as_bvh2_validate_gpu(const as_structure_t *s, const char *name);
 struct as_tri4;
 as_error_t as_bvh2_validate_tris(const as_structure_t *s, const char *name, const struct as_tri4 *tris,
                                  uint64_t tri_count);
+/* Where a leaf sits, for messages: "<node_label> <node>", then " <slot_label>
+ * <slot>" when slot_label is not NULL ("node 12 child 1", "BVHO node 12").
+ * Formatted only when a check fails: a string per leaf was most of the
+ * validation's time. */
+typedef struct as_leaf_where {
+    const char *node_label;
+    long long node;
+    const char *slot_label;
+    int slot;
+} as_leaf_where;
 as_error_t as_bvh2_validate_leaf(const as_structure_t *s, const char *name, const struct as_tri4 *tris,
                                  uint64_t tri_count, uint8_t *tri_seen, uint64_t first, uint64_t count,
-                                 const float box[6], const char *where);
+                                 const float box[6], const as_leaf_where *where);
 as_error_t as_bvh2_validate_counts(const as_structure_t *s, const char *name, const char *section, uint64_t node_count,
                                    uint64_t tri_count, uint64_t leaves, uint64_t references, uint32_t max_leaf_depth);
 /* The BVH2 layouts into each other (bvh2_own_layout_ops.c): `dst` is zeroed
