@@ -241,6 +241,7 @@ int bvh_sweep_bins(const v4f *lo, const v4f *hi, const uint32_t *enter, const ui
 }
 
 /* The three axes' bins of one reference, a byte each (bins_out). */
+_Static_assert(BVH_MAX_BINS <= 256, "a bin index fits a byte");
 static inline uint32_t bins_packed(const int32_t k[4])
 {
     return (uint32_t)k[0] | (uint32_t)k[1] << 8 | (uint32_t)k[2] << 16;
@@ -259,7 +260,7 @@ typedef struct obj_bins {
  * order or grouping they were binned in, so chunks binned apart and merged
  * give the bins of one pass. */
 static void bin_all(const bvh_ref *refs, uint32_t count, v4f vcmin, v4f vscale, v4f last, uint32_t nb, obj_bins *out,
-                    uint32_t *ids)
+                    uint32_t *bins_out)
 {
     const v4f empty_lo = v4f_set1(INFINITY), empty_hi = v4f_set1(-INFINITY);
     v4f blo2[3][BVH_MAX_BINS], bhi2[3][BVH_MAX_BINS];
@@ -277,9 +278,9 @@ static void bin_all(const bvh_ref *refs, uint32_t count, v4f vcmin, v4f vscale, 
         int32_t k0[4], k1[4];
         bin_of(lo0, hi0, vcmin, vscale, last, k0);
         bin_of(lo1, hi1, vcmin, vscale, last, k1);
-        if (ids) {
-            ids[i] = bins_packed(k0);
-            ids[i + 1] = bins_packed(k1);
+        if (bins_out) {
+            bins_out[i] = bins_packed(k0);
+            bins_out[i + 1] = bins_packed(k1);
         }
         for (int axis = 0; axis < 3; ++axis) {
             const int32_t x0 = k0[axis], x1 = k1[axis];
@@ -295,7 +296,7 @@ static void bin_all(const bvh_ref *refs, uint32_t count, v4f vcmin, v4f vscale, 
         const v4f lo0 = v4f_load3(refs[i].lo), hi0 = bvh_ref_load_hi(refs[i].hi);
         int32_t k0[4];
         bin_of(lo0, hi0, vcmin, vscale, last, k0);
-        if (ids) ids[i] = bins_packed(k0);
+        if (bins_out) bins_out[i] = bins_packed(k0);
         for (int axis = 0; axis < 3; ++axis) {
             out->lo[axis][k0[axis]] = v4f_min(out->lo[axis][k0[axis]], lo0);
             out->hi[axis][k0[axis]] = v4f_max(out->hi[axis][k0[axis]], hi0);
@@ -310,9 +311,9 @@ static void bin_all(const bvh_ref *refs, uint32_t count, v4f vcmin, v4f vscale, 
         }
 }
 
-/* The binning's frame for a node whose doubled centroid box is cb2: per
- * axis the lowest lo + hi and the scale to bins; 0 when no axis can be
- * binned (every centroid coincides). */
+/* The binning's frame cb2 (a box holding the node's lo + hi, exactly or
+ * loosely): per axis its low corner and the scale to bins; 0 when no axis
+ * can be binned (the frame is flat on every axis). */
 static int object_frame(const bvh_box *cb2, uint32_t nb, bvh_object_split *best, int use[3])
 {
     memset(best, 0, sizeof *best);
@@ -441,7 +442,7 @@ typedef struct par_bin_job {
     atomic_uint next;
     v4f vcmin, vscale, last;
     obj_bins *bins;   /* 2 per thread: bins[c] its sum, bins[n + c] its scratch */
-    uint32_t *ids;
+    uint32_t *bins_out;
 } par_bin_job;
 
 static void par_bin(void *user, unsigned c, unsigned n)
@@ -456,7 +457,7 @@ static void par_bin(void *user, unsigned c, unsigned n)
         if (k >= j->pieces) break;
         uint32_t first, end;
         as_chunk_range(j->count, k, j->pieces, &first, &end);
-        bin_all(j->refs + first, end - first, j->vcmin, j->vscale, j->last, j->nb, tmp, j->ids ? j->ids + first : NULL);
+        bin_all(j->refs + first, end - first, j->vcmin, j->vscale, j->last, j->nb, tmp, j->bins_out ? j->bins_out + first : NULL);
         obj_bins_merge(acc, tmp, j->nb);
     }
 }
@@ -488,7 +489,7 @@ bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, c
     j.vscale = v4f_load(scale);
     j.last = v4f_set1((float)(nb - 1));
     j.bins = bins;
-    j.ids = bins_out;
+    j.bins_out = bins_out;
     as_parallel_run(threads, par_bin, &j);
     /* min, max and sums are exact: the merged bins are those of one pass. */
     for (unsigned c = 1; c < threads; ++c) obj_bins_merge(&bins[0], &bins[c], nb);
@@ -749,7 +750,7 @@ static uint32_t partition_hoare(bvh_builder *b, const bvh_range *node, const bvh
  * to word w1, from the bins the node's binning wrote (4 bytes a reference
  * instead of its 32): bin <= s->bin goes left. Returns the number that go
  * left. */
-static uint32_t mark_sides(const uint32_t *ids, uint32_t count, const bvh_object_split *s, uint64_t *bits, uint32_t w0,
+static uint32_t mark_sides(const uint32_t *bins, uint32_t count, const bvh_object_split *s, uint64_t *bits, uint32_t w0,
                            uint32_t w1)
 {
     const unsigned shift = 8u * (unsigned)s->axis;
@@ -757,7 +758,7 @@ static uint32_t mark_sides(const uint32_t *ids, uint32_t count, const bvh_object
     uint32_t nl = 0;
     for (uint32_t w = w0; w < w1; ++w) {
         const uint32_t first = 64 * w, n = count - first < 64 ? count - first : 64;
-        const uint32_t *id = ids + first;
+        const uint32_t *id = bins + first;
         uint64_t word = 0;
         uint32_t k = 0;
 #if defined(__SSE2__)
@@ -859,7 +860,7 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
 
 typedef struct par_part_job {
     bvh_ref *refs;
-    const uint32_t *ids;
+    const uint32_t *bins;
     uint32_t count, nwords, nl, misplaced;
     const bvh_object_split *s;
     uint64_t *bits;
@@ -871,7 +872,7 @@ static void par_mark(void *user, unsigned c, unsigned n)
     par_part_job *j = user;
     uint32_t w0, w1;
     as_chunk_range(j->nwords, c, n, &w0, &w1);
-    j->part_nl[c] = mark_sides(j->ids, j->count, j->s, j->bits, w0, w1);
+    j->part_nl[c] = mark_sides(j->bins, j->count, j->s, j->bits, w0, w1);
 }
 
 static void par_swap(void *user, unsigned c, unsigned n)
@@ -893,7 +894,7 @@ uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bv
         return bvh_partition_object(b, node, s, left, right);
     }
     j->refs = b->refs + node->first;
-    j->ids = b->ref_bins + node->first;
+    j->bins = b->ref_bins + node->first;
     j->count = node->count;
     j->nwords = nwords;
     j->s = s;

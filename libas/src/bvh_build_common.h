@@ -271,7 +271,8 @@ int bvh_sweep_bins(const v4f *lo, const v4f *hi, const uint32_t *enter, const ui
                    int counts_in_occupied_only, const uint32_t *occ, uint32_t m, double best_cost, bvh_bin_sweep *out);
 
 /* The best binned SAH object split (Wald 2007) of refs[0, count) whose
- * doubled centroid box is cb2: axis -1 when every centroid coincides; cost
+ * doubled centroid box is cb2: axis -1 when every centroid falls in one
+ * bin (they coincide, or a loose frame is too wide for them); cost
  * is the sum of half-area x count of both sides, whose boxes and counts come
  * with it. Ties go to the lower axis, then bin. Only occupied bins are
  * swept, so a small node costs what its references cost, not what the bins
@@ -358,15 +359,16 @@ static inline void bvh_node_complete(bvh_builder *b, int32_t node, int child_sha
 typedef struct bvh_range {
     uint32_t first, count;
     bvh_box box;   /* of the references */
-    bvh_box cbox;  /* of lo + hi (see bvh_refs_centroid2_box) */
+    bvh_box cbox;  /* a frame that holds its references' lo + hi: exact for the root and where
+                    * bvh_range_bound set it, loose below a binned split (split_frames) */
 } bvh_range;
 /* Sets r's box and cbox from its references. */
 void bvh_range_bound(const bvh_builder *b, bvh_range *r);
 
 /* Partitions node's references in place by an object split found with
  * bins_out = b->ref_bins + node->first, filling both sides with their
- * boxes and with frames for their binning (see bvh_split_frames); returns
- * the first index of the right side. */
+ * boxes and with frames for their binning (split_frames in
+ * bvh_build_common.c); returns the first index of the right side. */
 uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
                               bvh_range *right);
 /* The same permutation on `threads` threads. */

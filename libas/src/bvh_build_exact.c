@@ -245,6 +245,7 @@ static void sort_axis(const float *k, uint32_t n, uint8_t *order, int plain_only
         return;
     }
 #endif
+    (void)plain_only;
     for (uint32_t i = 0; i < n; ++i) {
         const float ki = k[i];
         uint32_t rank = 0;

@@ -33,9 +33,23 @@ static int binned_split(bvh_builder *b, const bvh_range *node, unsigned threads,
     uint32_t nb = b->args->bin_count;
     if (count > BVH_DOUBLE_BINS_MIN) nb = 2 * nb < BVH_MAX_BINS ? 2 * nb : BVH_MAX_BINS;
     uint32_t *bins = b->ref_bins + node->first;
-    const bvh_object_split s =
+    bvh_object_split s =
         threads > 1 ? bvh_find_object_split_mt(b->refs + node->first, count, &node->cbox, nb, threads, bins)
                     : bvh_find_object_split(b->refs + node->first, count, &node->cbox, nb, bins);
+    bvh_range exact;
+    if (s.axis < 0) {
+        /* A loose frame (split_frames) can hold every centroid in one bin
+         * although they differ: before halving, bin once more in their own
+         * box. Rare, and the plain case of copies of one triangle costs one
+         * pass more. */
+        exact = *node;
+        exact.cbox = bvh_refs_centroid2_box(b->refs + node->first, count);
+        if (memcmp(&exact.cbox, &node->cbox, sizeof exact.cbox) != 0) {
+            node = &exact;
+            s = threads > 1 ? bvh_find_object_split_mt(b->refs + node->first, count, &node->cbox, nb, threads, bins)
+                            : bvh_find_object_split(b->refs + node->first, count, &node->cbox, nb, bins);
+        }
+    }
     const double area = bvh_box_half_area(&node->box);
     const double leaf_cost = ci * (double)count;
     const double split_cost = area > 0 ? ct + ci * s.cost / area : ct + ci * (double)count;

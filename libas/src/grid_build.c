@@ -36,7 +36,7 @@ static inline float max3f(float a, float b, float c) { const float m = a > b ? a
  * 16 threads: 22-27 -> 18-19 ms, run 88). */
 #define BLOCK 512
 
-/* The (cell, triangle) pairs pass 1 found in one block, in triangle order,
+/* The (cell, triangle) pairs pass 1 found in one unit, in triangle order,
  * then grouped by range of cells (range r at [range_at[r], range_at[r + 1]),
  * still in triangle order within each), so that a range's pass reads only
  * its own pairs. */
@@ -53,7 +53,7 @@ typedef struct grid_unit {
     uint32_t first, end;
     uint32_t lo, hi;   /* hi UINT32_MAX: every cell */
     int axis;
-    int last;          /* the unit that counts its triangles in the progress */
+    int reports;       /* counts its triangles in the progress (a slab: the last of its triangle's) */
 } grid_unit;
 
 typedef struct grid_job {
@@ -139,7 +139,7 @@ static inline unsigned grid_range_of(const grid_job *job, uint32_t cell)
     return (cell / RANGE_RUN_CELLS) & (job->ranges - 1);
 }
 
-/* Groups a block's pairs by range of cells, a stable counting sort. */
+/* Groups a unit's pairs by range of cells, a stable counting sort. */
 static int group_by_range(const grid_job *job, grid_pairs *p)
 {
     const unsigned ranges = job->ranges;
@@ -265,15 +265,14 @@ static int triangle_cells(const grid_job *job, uint32_t t, const float *v[3], ui
 
 /* Pass 1 over a unit: the cells of each triangle, kept as (cell, triangle)
  * pairs. */
-static void grid_block(void *user, size_t unit)
+static void grid_unit_pass(void *user, size_t unit)
 {
     grid_job *job = user;
     if (atomic_load(&job->cancelled)) return;
     /* The unit's pairs are grown in a local copy and stored at the end:
      * neighbouring units' entries share cache lines, and the threads
      * working on them would trade the line at every push. */
-    const size_t block = unit;
-    grid_pairs local = job->pairs[block], *pairs = &local;
+    grid_pairs local = job->pairs[unit], *pairs = &local;
     const as_grid_header_t *g = job->g;
     const grid_unit *un = &job->units[unit];
     const uint32_t begin = un->first, end = un->end;
@@ -281,11 +280,12 @@ static void grid_block(void *user, size_t unit)
     for (uint32_t t = begin; t < end; ++t) {
         if (job->skip[t]) continue;
         /* Pass 1 stops as soon as the budget is exceeded: the total would
-         * exceed it too, whatever the order. */
-        if ((t & 63) == 0) {
+         * exceed it too, whatever the order. Checked at each unit's first
+         * triangle too (a slab's is its only one). */
+        if (t == begin || (t & 63) == 0) {
             if (atomic_load(&job->over) || (double)(atomic_load(&job->refs) + local_refs) > job->budget) {
                 atomic_store(&job->over, 1);
-                job->pairs[block] = local;
+                job->pairs[unit] = local;
                 return;
             }
         }
@@ -320,21 +320,22 @@ static void grid_block(void *user, size_t unit)
                     ++local_refs;
                     if (!pairs_push(pairs, (uint32_t)cell, t)) {
                         atomic_store(&job->oom, 1);
-                        job->pairs[block] = local;
+                        job->pairs[unit] = local;
                         return;
                     }
                 }
             }
     }
     if (!group_by_range(job, &local)) atomic_store(&job->oom, 1);
-    job->pairs[block] = local;
+    job->pairs[unit] = local;
     atomic_fetch_add(&job->refs, local_refs);
-    if (un->last) report_progress(job, end - begin);
+    if (un->reports) report_progress(job, end - begin);
 }
 
 /* Pass 1's units. With few threads, blocks of BLOCK triangles. From
  * GRID_SPLIT_MIN_THREADS threads the work is planned first: a block whose
- * triangles' boxes reach more than UNIT_CELLS cells in all is cut into
+ * triangles' boxes reach more than UNIT_CELLS (or a share of the total,
+ * UNIT_SHARE) cells in all is cut into
  * runs of triangles reaching about that many, and a triangle that alone
  * reaches more is cut into slabs along its box's longest axis (in cells).
  * One block of staircase held 14% of its references (a few large
@@ -345,6 +346,11 @@ static void grid_block(void *user, size_t unit)
 #define UNIT_CELLS 16384
 #define GRID_SPLIT_MIN_THREADS 4
 #define SLABS_MAX 64
+/* Units reach at least total / (UNIT_SHARE x threads) cells: a scene of
+ * many large triangles makes at most about that many units beyond its
+ * blocks (each unit holds pair buffers, and the counting passes visit
+ * every unit for every range). */
+#define UNIT_SHARE 32
 
 typedef struct unit_cost_job {
     const grid_job *job;
@@ -410,17 +416,23 @@ static int plan_units(grid_job *job, unsigned threads, size_t blocks)
             block_cells = NULL;
         }
     }
+    uint64_t unit_cells = UNIT_CELLS;
+    if (cells) {
+        uint64_t total = 0;
+        for (size_t bk = 0; bk < blocks; ++bk) total += block_cells[bk];
+        if (total / ((uint64_t)UNIT_SHARE * threads) > unit_cells) unit_cells = total / ((uint64_t)UNIT_SHARE * threads);
+    }
     int ok = 1;
     for (size_t bk = 0; bk < blocks && ok; ++bk) {
         const uint32_t begin = (uint32_t)(bk * BLOCK), end = begin + BLOCK < nt ? begin + BLOCK : nt;
-        if (!cells || block_cells[bk] <= UNIT_CELLS) {
+        if (!cells || block_cells[bk] <= unit_cells) {
             ok = unit_push(job, &cap, (grid_unit){begin, end, 0, UINT32_MAX, 0, 1});
             continue;
         }
         uint32_t first = begin;
         uint64_t sum = 0;
         for (uint32_t t = begin; t < end && ok; ++t) {
-            if (cells[t] > UNIT_CELLS) {
+            if (cells[t] > unit_cells) {
                 if (t > first) ok = unit_push(job, &cap, (grid_unit){first, t, 0, UINT32_MAX, 0, 1});
                 const float *v[3];
                 uint32_t c0[3], c1[3];
@@ -429,7 +441,7 @@ static int plan_units(grid_job *job, unsigned threads, size_t blocks)
                 for (int k = 1; k < 3; ++k)
                     if (c1[k] - c0[k] > c1[axis] - c0[axis]) axis = k;
                 const uint64_t span = (uint64_t)c1[axis] - c0[axis] + 1;
-                uint64_t slabs = (cells[t] + (uint64_t)UNIT_CELLS - 1) / UNIT_CELLS;
+                uint64_t slabs = (cells[t] + unit_cells - 1) / unit_cells;
                 if (slabs > span) slabs = span;
                 if (slabs > SLABS_MAX) slabs = SLABS_MAX;
                 for (uint64_t k = 0; k < slabs && ok; ++k) {
@@ -441,7 +453,7 @@ static int plan_units(grid_job *job, unsigned threads, size_t blocks)
                 sum = 0;
                 continue;
             }
-            if (sum + cells[t] > UNIT_CELLS && t > first) {
+            if (sum + cells[t] > unit_cells && t > first) {
                 ok = unit_push(job, &cap, (grid_unit){first, t, 0, UINT32_MAX, 0, 1});
                 first = t;
                 sum = 0;
@@ -464,7 +476,7 @@ static int plan_units(grid_job *job, unsigned threads, size_t blocks)
  * which is PRIM's order whatever the thread count. */
 typedef struct range_job {
     grid_job *job;
-    size_t blocks;     /* units */
+    size_t units;
     int fill;          /* 0: count, 1: fill job->prims */
 } range_job;
 
@@ -474,7 +486,7 @@ static void grid_range_pass(void *user, size_t range)
     grid_job *job = f->job;
     if (atomic_load(&job->cancelled)) return;
     atomic_uint *at = job->counts;
-    for (size_t b = 0; b < f->blocks; ++b) {
+    for (size_t b = 0; b < f->units; ++b) {
         const grid_pairs *pairs = &job->pairs[b];
         if (!pairs->range_at) continue;
         for (size_t i = pairs->range_at[range]; i < pairs->range_at[range + 1]; ++i) {
@@ -490,10 +502,10 @@ static void grid_range_pass(void *user, size_t range)
     report_progress(job, (uint32_t)(nt * (range + 1) / job->ranges - nt * range / job->ranges));
 }
 
-static void free_pairs(grid_pairs *pairs, size_t blocks)
+static void free_pairs(grid_pairs *pairs, size_t units)
 {
     if (!pairs) return;
-    for (size_t b = 0; b < blocks; ++b) {
+    for (size_t b = 0; b < units; ++b) {
         free(pairs[b].cell);
         free(pairs[b].tri);
         free(pairs[b].range_at);
@@ -728,7 +740,7 @@ as_error_t as_grid_build(const as_mesh_t *mesh, const as_build_args_t *args, as_
             err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build");
             goto done;
         }
-        as_parallel_for(threads, job.unit_count, grid_block, &job);
+        as_parallel_for(threads, job.unit_count, grid_unit_pass, &job);
         if (atomic_load(&job.cancelled)) { err = as_set_error(AS_ERROR_CANCELLED, "grid build cancelled by the progress callback"); goto done; }
         if (atomic_load(&job.oom)) { err = as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory for the grid build"); goto done; }
         const uint64_t refs = atomic_load(&job.refs);

@@ -25,10 +25,10 @@ double as_grid_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
     const double rel = root_area > 0 ? as_spatial_half_area(cell_lo, cell_hi) / root_area : 1.0;
     const uint64_t cells = cs->count - 1;
     /* Every cell has the same area, so the sum over cells is C_t x cells +
-     * C_i x references, both exact integers: one expression instead of a
-     * serial sum over every cell (about 4 ms of each build of bmw-m6's 3
-     * million, whatever the thread count), and no rounding that grows with
-     * the cells. */
+     * C_i x references, from two counts that are exact: one expression
+     * instead of a serial sum over every cell (about 4 ms of each build of
+     * bmw-m6's 3 million, whatever the thread count), rounded a few times
+     * rather than once per cell. */
     const uint64_t refs = off[cells] - off[0];
     if (st) {
         for (uint64_t c = 0; c < cells; ++c) {
