@@ -776,7 +776,9 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             return;
         }
         kd_ref *lr = refs_alloc(nl), *rr = refs_alloc(nr);
-        const int hand_down = ops->child_states != NULL;
+        /* A node without lists (a small one) has none to hand down: its
+         * partition need not note the sides and clipped references. */
+        const int hand_down = ops->child_states != NULL && t.state != NULL;
         kd_tmp *node = new_tmp(run, sc);
         if (!lr || !rr || !node || (hand_down && !scratch_clipped_room(sc, n))) {
             free(chunk_at);

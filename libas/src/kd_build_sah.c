@@ -1492,12 +1492,13 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
         if (filter) {
             /* As the sweep's filter: four single-precision costs against
              * the threshold rounded up to a float in one compare, the few
-             * that pass tested again exactly. */
+             * that pass tested again exactly. The costs past the last
+             * candidate are infinite (price_small_axis writes whole blocks
+             * of eight): no lane mask, which cost more than the loop. */
             for (uint32_t q = 0; q < sa->n_cand; q += 4) {
                 float t = (float)b.threshold;
                 if ((double)t < b.threshold) t = as_float_next_up(t);
                 unsigned lanes = (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), _mm_set1_ps(t)));
-                if (sa->n_cand - q < 4) lanes &= (1u << (sa->n_cand - q)) - 1u;
                 while (lanes) {
                     const uint32_t j = q + (uint32_t)__builtin_ctz(lanes);
                     lanes &= lanes - 1u;
