@@ -84,10 +84,8 @@ static void report(bih_builder *b, uint64_t prims)
 
 /* What a task keeps for itself: the objects in its leaves not yet
  * reported (reported once they make a step of the build, REPORT_STEPS, and
- * when the task ends), and its chunk of nodes. Nodes come in chunks of
- * NODE_CHUNK per task, not a pair at a time from a counter every thread
- * writes (which on 16 threads was taken hundreds of thousands of times per
- * build); a task leaves at most a chunk unused, and at most
+ * when the task ends), and its chunk of nodes (as_slots_take, NODE_CHUNK at
+ * a time); a task leaves at most a chunk unused, and at most
  * MAX_SHARED_TASKS are handed over, which bounds the array. */
 #define NODE_CHUNK 64
 #define MAX_SHARED_TASKS 1024
@@ -101,12 +99,9 @@ typedef struct bih_local {
  * which the array's bound rules out. */
 static int64_t take_pair(bih_builder *b, bih_local *u)
 {
-    if (u->chunk_next + 2 > u->chunk_end) {
-        const uint64_t first = atomic_fetch_add(&b->node_next, NODE_CHUNK);
-        if (first + NODE_CHUNK > b->node_capacity) return -1;
-        u->chunk_next = first;
-        u->chunk_end = first + NODE_CHUNK;
-    }
+    if (u->chunk_next + 2 > u->chunk_end &&
+        !as_slots_take(&b->node_next, b->node_capacity, NODE_CHUNK, 2, &u->chunk_next, &u->chunk_end))
+        return -1;
     const uint64_t l = u->chunk_next;
     u->chunk_next += 2;
     u->used += 2;

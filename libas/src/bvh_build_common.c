@@ -535,14 +535,7 @@ int bvh_local_pair(bvh_local *l, int32_t *left, int32_t *right)
     if (l->next + 2 > l->end) {
         bvh_builder *b = l->b;
         bvh_local_flush(l);
-        /* Never past the capacity: the last chunks shrink. */
-        uint64_t cur = atomic_load_explicit(&b->node_next, memory_order_relaxed), take;
-        do {
-            if (cur + 2 > b->node_capacity) return 0;
-            take = b->node_capacity - cur < BVH_NODE_CHUNK ? b->node_capacity - cur : BVH_NODE_CHUNK;
-        } while (!atomic_compare_exchange_weak(&b->node_next, &cur, cur + take));
-        l->next = cur;
-        l->end = cur + take;
+        if (!as_slots_take(&b->node_next, b->node_capacity, BVH_NODE_CHUNK, 2, &l->next, &l->end)) return 0;
     }
     *left = (int32_t)l->next;
     *right = (int32_t)l->next + 1;

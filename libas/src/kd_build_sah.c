@@ -986,6 +986,15 @@ static inline int plane_wins(const sweep_best *b, double cost, float pos)
     return cost < b->cost || (b->found && cost == b->cost && pos < b->pos);
 }
 
+/* b's threshold rounded up to a float, to test four single-precision costs
+ * in one compare: a looser test, each cost that passes is tested again
+ * exactly. */
+static inline float threshold_float(const sweep_best *b)
+{
+    const float t = (float)b->threshold;
+    return (double)t < b->threshold ? as_float_next_up(t) : t;
+}
+
 /* The exact cost, in double precision, of the plane at pos with nl0
  * references below, nr0 above and p_eq in it, those first below, then
  * above (without any, both cost the same and the second is never lower),
@@ -1105,9 +1114,8 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
              * (rounded up to a float: a looser test, each passing group is
              * tested again exactly) in one compare; most fail. */
             for (size_t q = 1; q < k; q += 4) {
-                float t = (float)best.threshold;
-                if ((double)t < best.threshold) t = as_float_next_up(t);
-                unsigned lanes = (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&g.cost[q]), _mm_set1_ps(t)));
+                unsigned lanes =
+                    (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&g.cost[q]), _mm_set1_ps(threshold_float(&best))));
                 if (k - q < 4) lanes &= (1u << (k - q)) - 1u;
                 while (lanes) {
                     const size_t at = q + (size_t)__builtin_ctz(lanes);
@@ -1496,9 +1504,8 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
              * candidate are infinite (price_small_axis writes whole blocks
              * of eight): no lane mask, which cost more than the loop. */
             for (uint32_t q = 0; q < sa->n_cand; q += 4) {
-                float t = (float)b.threshold;
-                if ((double)t < b.threshold) t = as_float_next_up(t);
-                unsigned lanes = (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), _mm_set1_ps(t)));
+                unsigned lanes =
+                    (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), _mm_set1_ps(threshold_float(&b))));
                 while (lanes) {
                     const uint32_t j = q + (uint32_t)__builtin_ctz(lanes);
                     lanes &= lanes - 1u;

@@ -9,7 +9,9 @@
 #ifndef AS_TASK_POOL_H
 #define AS_TASK_POOL_H
 
+#include <stdatomic.h>
 #include <stddef.h>
+#include <stdint.h>
 
 /* The largest task struct. */
 #define AS_TASK_MAX_SIZE 512
@@ -21,6 +23,26 @@ typedef void (*as_task_fn)(as_task_pool *pool, void *task, void *user);
  * returning when all are done. Returns 0 when the pool could not be set up
  * (then nothing ran). */
 int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_task_fn run, void *user);
+
+/* Slots of an array that the pool's tasks fill (a builder's nodes), taken
+ * by each task in runs of up to `chunk` from one shared counter: a counter
+ * every thread bumped for every node was what kept the builders from
+ * scaling, its cache line passed from thread to thread. Sets the task's
+ * run [*first, *end) of at least `need` slots and returns 1, or returns 0
+ * when fewer than `need` are left; the last runs shrink, so no slot past
+ * `capacity` is ever handed out. */
+static inline int as_slots_take(atomic_uint_fast64_t *counter, uint64_t capacity, uint64_t chunk, uint64_t need,
+                                uint64_t *first, uint64_t *end)
+{
+    uint64_t cur = atomic_load_explicit(counter, memory_order_relaxed), take;
+    do {
+        if (cur + need > capacity) return 0;
+        take = capacity - cur < chunk ? capacity - cur : chunk;
+    } while (!atomic_compare_exchange_weak(counter, &cur, cur + take));
+    *first = cur;
+    *end = cur + take;
+    return 1;
+}
 
 /* Shares a task with the other threads; returns 0 when it could not (no
  * memory), in which case the caller runs it itself. */
