@@ -746,18 +746,25 @@ static void small_nodes_choose_the_sweeps_plane(void)
                 if (ref_rand01(&st) < 0.2) h = l;                      /* flat along the axis */
                 if (ref_rand01(&st) < 0.15) l = box[k];                /* on a face */
                 if (ref_rand01(&st) < 0.15) h = box[k + 3];
+                /* A float off a grid value: planes one step apart. */
+                if (ref_rand01(&st) < 0.1) l = ref_rand01(&st) < 0.5 ? as_float_next_up(l) : as_float_next_down(l);
+                if (ref_rand01(&st) < 0.1) h = ref_rand01(&st) < 0.5 ? as_float_next_up(h) : as_float_next_down(h);
+                l = l < box[k] ? box[k] : l > box[k + 3] ? box[k + 3] : l;
+                h = h < box[k] ? box[k] : h > box[k + 3] ? box[k + 3] : h;
                 if (h < l) h = l;
                 refs[i].lo[k] = l;
                 refs[i].hi[k] = h;
             }
         }
         /* The chooser as the build runs it here (AVX2 where the processor
-         * has it) and in its SSE2 form, each against the sweep. */
+         * has it), in its SSE2 form and in its plain one, each against the
+         * sweep. */
         kd_split swept;
         memset(&swept, 0, sizeof swept);
         const int r0 = kd_sah_choose_plane(&a, refs, n, box, KD_CHOOSE_SWEEP, &swept);
-        static const int forms[2] = {KD_CHOOSE_SMALL, KD_CHOOSE_SMALL_SSE2};
-        for (int f = 0; f < 2; ++f) {
+        static const int forms[3] = {KD_CHOOSE_SMALL, KD_CHOOSE_SMALL_SSE2, KD_CHOOSE_SMALL_PLAIN};
+        static const char *const form_names[3] = {"built", "SSE2", "plain"};
+        for (int f = 0; f < 3; ++f) {
             kd_split counted;
             memset(&counted, 0, sizeof counted);
             const int r1 = kd_sah_choose_plane(&a, refs, n, box, forms[f], &counted);
@@ -768,7 +775,7 @@ static void small_nodes_choose_the_sweeps_plane(void)
                        swept.count[1] == counted.count[1];
             if (!same && differ++ < 5)
                 fprintf(stderr, "  node %d (%u refs), %s form: sweep %d axis %d at %a below %d (%u, %u); counted %d axis %d at %a below %d (%u, %u)\n",
-                        it, n, f ? "SSE2" : "built", r0, swept.axis, swept.pos, swept.planar_left, swept.count[0],
+                        it, n, form_names[f], r0, swept.axis, swept.pos, swept.planar_left, swept.count[0],
                         swept.count[1], r1, counted.axis, counted.pos, counted.planar_left, counted.count[0],
                         counted.count[1]);
         }

@@ -103,9 +103,10 @@ typedef struct kd_ctx {
      * triangle's vertices from one 48-byte entry, not through the index
      * buffer from three places. */
     const as_tri4_t *tris;
-    /* The small nodes' chooser in its SSE2 form even where the processor
-     * has AVX2 (kd_sah_choose_plane's tests of both forms). */
-    int small_sse2_only;
+    /* The form of the small nodes' chooser: KD_CHOOSE_SMALL (the fastest
+     * the processor has), or KD_CHOOSE_SMALL_SSE2 or _PLAIN, which
+     * kd_sah_choose_plane's tests hold to the same planes. */
+    int small_form;
 } kd_ctx;
 
 /* The box of a reference after clipping (kd_build.c): `old`'s box within
@@ -133,11 +134,12 @@ void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const flo
  * order) inside box: chosen by sweeping the node's sorted event lists
  * (KD_CHOOSE_SWEEP), or as a small node chooses it, from the references
  * themselves (n at most 32): in the form the build uses on this processor
- * (KD_CHOOSE_SMALL: AVX2 where it has it) or in the SSE2 form
- * (KD_CHOOSE_SMALL_SSE2). Returns 1 with the plane, 0 when the node is
+ * (KD_CHOOSE_SMALL: AVX2 where it has it), in the SSE2 form
+ * (KD_CHOOSE_SMALL_SSE2) or in the plain one (KD_CHOOSE_SMALL_PLAIN, the
+ * form without vector units). Returns 1 with the plane, 0 when the node is
  * better a leaf, -1 when it cannot choose (out of memory, or too many
  * references for a small node). Every way gives the same plane. */
-enum { KD_CHOOSE_SMALL = 0, KD_CHOOSE_SWEEP = 1, KD_CHOOSE_SMALL_SSE2 = 2 };
+enum { KD_CHOOSE_SMALL = 0, KD_CHOOSE_SWEEP = 1, KD_CHOOSE_SMALL_SSE2 = 2, KD_CHOOSE_SMALL_PLAIN = 3 };
 int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_t n, const float box[6], int how,
                         kd_split *out);
 

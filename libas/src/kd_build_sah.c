@@ -1247,227 +1247,331 @@ static void sweep_in_pieces(choose_job *cj, unsigned threads, unsigned per_axis)
 /* A node of at most SMALL_NODE_REFS references gets no event lists from
  * its parent: its plane is chosen from its references themselves. Every
  * candidate (a bound of a reference strictly inside the box) is counted
- * against every reference, four candidates in one vector compare, which for
- * so few references costs less than the lists that the sweep would read and
- * that the parent would have to make and sort. The plane is the sweep's:
- * the same counts and costs, and ties resolved as the sweep resolves them
- * (the lowest position, triangles in the plane below before above, the
- * lowest axis). */
+ * against every reference, eight or four candidates in one vector compare,
+ * which for so few references costs less than the lists that the sweep
+ * would read and that the parent would have to make and sort. The plane is
+ * the sweep's: the same counts and costs, and ties resolved as the sweep
+ * resolves them (the lowest position, triangles in the plane below before
+ * above, the lowest axis); the order in which candidates are priced does
+ * not change it. */
 #define SMALL_CANDIDATES (2 * SMALL_NODE_REFS)
 
-/* One axis of a small node: its references' bounds on the axis, split into
- * those with extent (a START and an END event) and flat ones (PLANAR). */
+/* A position's key as a signed integer: float_key with its top bit
+ * flipped, so that signed integer compares, which the vector units have
+ * for every width, order positions as the sweep's keys do (-0 as 0). */
+static inline int32_t small_key(float f)
+{
+    const uint32_t b = as_float_as_uint(f), m = b & 0x7fffffffu;
+    return (int32_t)((b >> 31) && m ? ~m : m);
+}
+
+static inline float small_key_float(int32_t k)
+{
+    return as_uint_as_float(k < 0 ? ~(uint32_t)k | 0x80000000u : (uint32_t)k);
+}
+
+/* One axis of a small node. Per reference, the keys of its bounds on the
+ * axis; a flat one's (a PLANAR event) are moved one step apart, its low
+ * key one above its position and its high key one below, so that for
+ * every reference "below a plane at key c" is lo <= c, "above" is
+ * hi >= c, and "in the plane" is lo > c and hi < c (which a reference with
+ * extent never is). */
 typedef struct small_axis {
-    float lo[SMALL_NODE_REFS], hi[SMALL_NODE_REFS], flat[SMALL_NODE_REFS];
-    uint32_t n_lo, n_flat;
-    float cand[SMALL_CANDIDATES + 8];
+    int32_t lo[SMALL_NODE_REFS], hi[SMALL_NODE_REFS];
+    uint32_t n_flat;
+    /* The candidates' keys; room for two vector blocks past the last. */
+    int32_t cand[SMALL_CANDIDATES + 16];
     uint32_t n_cand;
     /* Per candidate: the counts the sweep's group gives (below, above, in
-     * the plane), and its single-precision cost; room for the vector loop's
-     * last eight. */
-    uint32_t nl0[SMALL_CANDIDATES + 8], nr0[SMALL_CANDIDATES + 8], in_plane[SMALL_CANDIDATES + 8];
-    float cost[SMALL_CANDIDATES + 8];
+     * the plane), and its single-precision cost. */
+    uint32_t nl0[SMALL_CANDIDATES + 16], nr0[SMALL_CANDIDATES + 16], in_plane[SMALL_CANDIDATES + 16];
+    float cost[SMALL_CANDIDATES + 16];
 } small_axis;
 
-/* Counts and single-precision costs of every candidate of s, the lowest
- * returned; `sp` as for a sweep (key_lo, key_hi unused). */
+/* The three axes of a small node from its references: each reference's
+ * keys, and those of its bounds strictly inside the box as candidates
+ * (a flat reference's one position once). */
+static void small_axes_fill(small_axis axes[3], const kd_ref *refs, uint32_t n, const float box[6])
+{
+    for (int a = 0; a < 3; ++a) {
+        small_axis *s = &axes[a];
+        const int32_t box_lo = small_key(box[a]), box_hi = small_key(box[a + 3]);
+        uint32_t n_flat = 0, n_cand = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            const int32_t kl = small_key(refs[i].lo[a]), kh = small_key(refs[i].hi[a]);
+            const int32_t flat = kl == kh;
+            s->lo[i] = kl + flat;
+            s->hi[i] = kh - flat;
+            n_flat += (uint32_t)flat;
+            s->cand[n_cand] = kl;
+            n_cand += (uint32_t)((kl > box_lo) & (kl < box_hi));
+            s->cand[n_cand] = kh;
+            n_cand += (uint32_t)((flat ^ 1) & (kh > box_lo) & (kh < box_hi));
+        }
+        s->n_flat = n_flat;
+        s->n_cand = n_cand;
+    }
+}
+
+/* Counts and single-precision costs of every candidate of s against the
+ * node's n references, the lowest returned; `sp` as for a sweep (key_lo,
+ * key_hi unused). The plain form; the vector forms below take the same
+ * steps in their lanes. */
+static float price_small_axis_plain(small_axis *s, uint32_t n, const sweep_prices *sp)
+{
+    float low = INFINITY;
+    for (uint32_t j = 0; j < s->n_cand; ++j) {
+        const int32_t c = s->cand[j];
+        uint32_t nl0 = 0, nr0 = 0, p_eq = 0;
+        for (uint32_t k = 0; k < n; ++k) {
+            nl0 += s->lo[k] <= c;
+            nr0 += s->hi[k] >= c;
+            p_eq += (s->lo[k] > c) & (s->hi[k] < c);
+        }
+        s->cost[j] = price_plane(small_key_float(c), nl0, nr0, p_eq, sp);
+        s->nl0[j] = nl0;
+        s->nr0[j] = nr0;
+        s->in_plane[j] = p_eq;
+        low = s->cost[j] < low ? s->cost[j] : low;
+    }
+    /* As the vector forms: whole blocks priced, those past the last
+     * candidate infinite. */
+    for (uint32_t j = s->n_cand; j < s->n_cand + 16; ++j) s->cost[j] = INFINITY;
+    return low;
+}
+
 #if defined(__SSE2__)
-/* The prices of four candidates at pos with their counts, into s at j. */
-static inline __m128 price_small_four(small_axis *s, uint32_t j, __m128 pos, __m128i nl0, __m128i nr0, __m128i p_eq,
+/* small_key_float in every lane. */
+static inline __m128 small_key_floats4(__m128i k)
+{
+    return _mm_castsi128_ps(_mm_xor_si128(k, _mm_and_si128(_mm_srai_epi32(k, 31), _mm_set1_epi32(0x7fffffff))));
+}
+
+/* The prices of four candidates with their counts, into s at j. */
+static inline __m128 price_small_four(small_axis *s, uint32_t j, __m128i c, __m128i nl0, __m128i nr0, __m128i p_eq,
                                       const sweep_prices *sp)
 {
     const __m128 inf = _mm_set1_ps(INFINITY);
     /* Lanes past the last candidate price as infinite. */
     const __m128 real = _mm_castsi128_ps(
         _mm_cmplt_epi32(_mm_add_epi32(_mm_set1_epi32((int)j), _mm_set_epi32(3, 2, 1, 0)), _mm_set1_epi32((int)s->n_cand)));
-    const __m128 cost = _mm_or_ps(_mm_and_ps(real, price_planes4(pos, nl0, nr0, p_eq, sp)), _mm_andnot_ps(real, inf));
+    const __m128 cost =
+        _mm_or_ps(_mm_and_ps(real, price_planes4(small_key_floats4(c), nl0, nr0, p_eq, sp)), _mm_andnot_ps(real, inf));
     _mm_storeu_ps(&s->cost[j], cost);
     _mm_storeu_si128((__m128i *)&s->nl0[j], nl0);
     _mm_storeu_si128((__m128i *)&s->nr0[j], nr0);
     _mm_storeu_si128((__m128i *)&s->in_plane[j], p_eq);
     return cost;
 }
+
+static float price_small_axis_sse2(small_axis *s, uint32_t n, const sweep_prices *sp)
+{
+    const __m128i one = _mm_set1_epi32(1), count = _mm_set1_epi32((int)n);
+    __m128 low = _mm_set1_ps(INFINITY);
+    /* Eight candidates at a time; the masks are -1 where true. */
+    for (uint32_t j = 0; j < s->n_cand; j += 8) {
+        const __m128i c_a = _mm_loadu_si128((const __m128i *)&s->cand[j]);
+        const __m128i c_b = _mm_loadu_si128((const __m128i *)&s->cand[j + 4]);
+        const __m128i d_a = _mm_sub_epi32(c_a, one), d_b = _mm_sub_epi32(c_b, one);
+        __m128i gt_a = _mm_setzero_si128(), gt_b = gt_a, ge_a = gt_a, ge_b = gt_a, eq_a = gt_a, eq_b = gt_a;
+        for (uint32_t k = 0; k < n; ++k) {
+            const __m128i lo = _mm_set1_epi32(s->lo[k]), hi = _mm_set1_epi32(s->hi[k]);
+            const __m128i l_a = _mm_cmpgt_epi32(lo, c_a), l_b = _mm_cmpgt_epi32(lo, c_b);
+            const __m128i h_a = _mm_cmpgt_epi32(hi, d_a), h_b = _mm_cmpgt_epi32(hi, d_b);
+            gt_a = _mm_sub_epi32(gt_a, l_a);
+            gt_b = _mm_sub_epi32(gt_b, l_b);
+            ge_a = _mm_sub_epi32(ge_a, h_a);
+            ge_b = _mm_sub_epi32(ge_b, h_b);
+            eq_a = _mm_sub_epi32(eq_a, _mm_andnot_si128(h_a, l_a));
+            eq_b = _mm_sub_epi32(eq_b, _mm_andnot_si128(h_b, l_b));
+        }
+        low = _mm_min_ps(low, price_small_four(s, j, c_a, _mm_sub_epi32(count, gt_a), ge_a, eq_a, sp));
+        low = _mm_min_ps(low, price_small_four(s, j + 4, c_b, _mm_sub_epi32(count, gt_b), ge_b, eq_b, sp));
+    }
+    return lowest4(low);
+}
 #endif
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #define KD_SMALL_AVX2 1
 #include <immintrin.h>
-/* price_small_axis with eight candidates per compare, on processors with
- * AVX2 (chosen at run time): the counts are the same integers, and each
- * price takes price_planes4's steps in its order without fused
- * multiply-adds (the function may use AVX2, not FMA), so the costs are the
- * same floats and the plane the same. About half of the small nodes'
- * chooser is this loop. */
-__attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s, const sweep_prices *sp)
+#include <pthread.h>
+
+/* For each 8-bit lane mask, the indices of its set lanes in order (one
+ * byte each): a permutation that packs the lanes a mask keeps. */
+static uint64_t small_pack_lanes[256];
+static pthread_once_t small_pack_once = PTHREAD_ONCE_INIT;
+
+static void small_pack_init(void)
+{
+    for (unsigned m = 0; m < 256; ++m) {
+        uint64_t v = 0;
+        unsigned at = 0;
+        for (unsigned l = 0; l < 8; ++l)
+            if (m & (1u << l)) v |= (uint64_t)l << (8 * at++);
+        small_pack_lanes[m] = v;
+    }
+}
+
+/* small_key in every lane. */
+__attribute__((target("avx2"))) static inline __m256i small_keys8(__m256 f)
+{
+    const __m256i b = _mm256_castps_si256(f), m = _mm256_and_si256(b, _mm256_set1_epi32(0x7fffffff));
+    const __m256i negative = _mm256_andnot_si256(_mm256_cmpeq_epi32(m, _mm256_setzero_si256()), _mm256_srai_epi32(b, 31));
+    return _mm256_xor_si256(m, negative);
+}
+
+/* The lanes of v that mask keeps, packed, stored at out; returns how many. */
+__attribute__((target("avx2"))) static inline uint32_t small_pack8(int32_t *out, __m256i v, __m256i keep)
+{
+    const unsigned m = (unsigned)_mm256_movemask_ps(_mm256_castsi256_ps(keep));
+    const __m256i perm = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128((long long)small_pack_lanes[m]));
+    _mm256_storeu_si256((__m256i *)out, _mm256_permutevar8x32_epi32(v, perm));
+    return (uint32_t)__builtin_popcount(m);
+}
+
+/* small_axes_fill eight references at a time, on processors with AVX2:
+ * each axis's bounds gathered from the references, the keys made in the
+ * lanes, and the candidates packed with a permutation. The same keys and
+ * candidates, these in another order. */
+__attribute__((target("avx2"))) static void small_axes_fill_avx2(small_axis axes[3], const kd_ref *refs, uint32_t n,
+                                                                 const float box[6])
+{
+    pthread_once(&small_pack_once, small_pack_init);
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    /* A reference is seven floats: lo[3], hi[3], then its id. */
+    const __m256i stride = _mm256_setr_epi32(0, 7, 14, 21, 28, 35, 42, 49);
+    uint32_t n_flat[3] = {0, 0, 0}, n_cand[3] = {0, 0, 0};
+    __m256i box_lo[3], box_hi[3];
+    for (int a = 0; a < 3; ++a) {
+        box_lo[a] = _mm256_set1_epi32(small_key(box[a]));
+        box_hi[a] = _mm256_set1_epi32(small_key(box[a + 3]));
+    }
+    for (uint32_t b = 0; b < n; b += 8) {
+        /* Lanes past the last reference read nothing and keep nothing. */
+        const __m256i real = _mm256_cmpgt_epi32(_mm256_set1_epi32((int)(n - b)), lane);
+        const float *base = refs[b].lo;
+        for (int a = 0; a < 3; ++a) {
+            small_axis *s = &axes[a];
+            const __m256 lo = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), base + a, stride, _mm256_castsi256_ps(real), 4);
+            const __m256 hi =
+                _mm256_mask_i32gather_ps(_mm256_setzero_ps(), base + 3 + a, stride, _mm256_castsi256_ps(real), 4);
+            const __m256i kl = small_keys8(lo), kh = small_keys8(hi);
+            const __m256i flat = _mm256_and_si256(_mm256_cmpeq_epi32(kl, kh), real);
+            _mm256_storeu_si256((__m256i *)&s->lo[b], _mm256_sub_epi32(kl, flat));
+            _mm256_storeu_si256((__m256i *)&s->hi[b], _mm256_add_epi32(kh, flat));
+            n_flat[a] += (uint32_t)__builtin_popcount((unsigned)_mm256_movemask_ps(_mm256_castsi256_ps(flat)));
+            const __m256i l_in = _mm256_and_si256(
+                real, _mm256_and_si256(_mm256_cmpgt_epi32(kl, box_lo[a]), _mm256_cmpgt_epi32(box_hi[a], kl)));
+            const __m256i h_in = _mm256_andnot_si256(
+                flat, _mm256_and_si256(real, _mm256_and_si256(_mm256_cmpgt_epi32(kh, box_lo[a]), _mm256_cmpgt_epi32(box_hi[a], kh))));
+            n_cand[a] += small_pack8(&s->cand[n_cand[a]], kl, l_in);
+            n_cand[a] += small_pack8(&s->cand[n_cand[a]], kh, h_in);
+        }
+    }
+    for (int a = 0; a < 3; ++a) {
+        axes[a].n_flat = n_flat[a];
+        axes[a].n_cand = n_cand[a];
+    }
+}
+
+/* price_planes4's steps for eight planes (without fused multiply-adds: the
+ * function may use AVX2, not FMA), so the costs are the same floats. */
+__attribute__((target("avx2"))) static inline __m256 price_planes8(__m256 pos, __m256i nl0, __m256i nr0, __m256i p_eq,
+                                                                   const sweep_prices *sp)
 {
     const __m256i zero = _mm256_setzero_si256();
-    const __m256 inf = _mm256_set1_ps(INFINITY), bonus = _mm256_set1_ps(0.8f), one = _mm256_set1_ps(1.0f);
+    const __m256 bonus = _mm256_set1_ps(0.8f), one = _mm256_set1_ps(1.0f);
     const __m256 face = _mm256_set1_ps(sp->face), rim = _mm256_set1_ps(sp->rim), ct = _mm256_set1_ps(sp->ct),
-                 ci = _mm256_set1_ps(sp->ci), lo = _mm256_set1_ps(sp->lo), hi = _mm256_set1_ps(sp->hi);
-    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), n_cand = _mm256_set1_epi32((int)s->n_cand);
-    __m256 low = inf;
-    for (uint32_t j = 0; j < s->n_cand; j += 8) {
-        const __m256 pos = _mm256_loadu_ps(&s->cand[j]);
-        __m256i nl0 = zero, nr0 = zero, p_eq = zero;
-        /* Each bound broadcast from memory in the compare's load: a
-         * broadcast costs what a load does. */
-        for (uint32_t k = 0; k < s->n_lo; ++k) {
-            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(_mm256_broadcast_ss(&s->lo[k]), pos, _CMP_LE_OQ)));
-            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(_mm256_broadcast_ss(&s->hi[k]), pos, _CMP_GE_OQ)));
+                 ci = _mm256_set1_ps(sp->ci);
+    const __m256i nl = _mm256_add_epi32(nl0, p_eq), nr = _mm256_add_epi32(nr0, p_eq);
+    const __m256 al = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(pos, _mm256_set1_ps(sp->lo))));
+    const __m256 ar = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(_mm256_set1_ps(sp->hi), pos)));
+    const __m256i empty_l = _mm256_or_si256(_mm256_cmpeq_epi32(nl, zero), _mm256_cmpeq_epi32(nr0, zero));
+    const __m256i empty_r = _mm256_or_si256(_mm256_cmpeq_epi32(nl0, zero), _mm256_cmpeq_epi32(nr, zero));
+    const __m256 lambda_l = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_l));
+    const __m256 lambda_r = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_r));
+    const __m256 cost_l = _mm256_mul_ps(
+        lambda_l, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl)),
+                                                                     _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr0))))));
+    const __m256 cost_r = _mm256_mul_ps(
+        lambda_r, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl0)),
+                                                                     _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr))))));
+    return _mm256_min_ps(cost_l, cost_r);
+}
+
+/* The prices of eight candidates with their counts, into s at j. */
+__attribute__((target("avx2"))) static inline __m256 price_small_eight(small_axis *s, uint32_t j, __m256i c, __m256i nl0,
+                                                                       __m256i nr0, __m256i p_eq, const sweep_prices *sp)
+{
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256 pos = _mm256_castsi256_ps(
+        _mm256_xor_si256(c, _mm256_and_si256(_mm256_srai_epi32(c, 31), _mm256_set1_epi32(0x7fffffff))));
+    /* Lanes past the last candidate price as infinite. */
+    const __m256 real =
+        _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32((int)s->n_cand), _mm256_add_epi32(_mm256_set1_epi32((int)j), lane)));
+    const __m256 cost = _mm256_blendv_ps(_mm256_set1_ps(INFINITY), price_planes8(pos, nl0, nr0, p_eq, sp), real);
+    _mm256_storeu_ps(&s->cost[j], cost);
+    _mm256_storeu_si256((__m256i *)&s->nl0[j], nl0);
+    _mm256_storeu_si256((__m256i *)&s->nr0[j], nr0);
+    _mm256_storeu_si256((__m256i *)&s->in_plane[j], p_eq);
+    return cost;
+}
+
+/* The counts of sixteen candidates against every reference, each key
+ * broadcast once for both blocks; without flat references nothing lies in
+ * a plane, and the loop takes two compares a reference. */
+__attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s, uint32_t n, const sweep_prices *sp)
+{
+    const __m256i one = _mm256_set1_epi32(1), count = _mm256_set1_epi32((int)n), zero = _mm256_setzero_si256();
+    __m256 low = _mm256_set1_ps(INFINITY);
+    for (uint32_t j = 0; j < s->n_cand; j += 16) {
+        const __m256i c_a = _mm256_loadu_si256((const __m256i *)&s->cand[j]);
+        const __m256i c_b = _mm256_loadu_si256((const __m256i *)&s->cand[j + 8]);
+        const __m256i d_a = _mm256_sub_epi32(c_a, one), d_b = _mm256_sub_epi32(c_b, one);
+        __m256i gt_a = zero, gt_b = zero, ge_a = zero, ge_b = zero, eq_a = zero, eq_b = zero;
+        if (s->n_flat) {
+            for (uint32_t k = 0; k < n; ++k) {
+                const __m256i lo = _mm256_set1_epi32(s->lo[k]), hi = _mm256_set1_epi32(s->hi[k]);
+                const __m256i l_a = _mm256_cmpgt_epi32(lo, c_a), l_b = _mm256_cmpgt_epi32(lo, c_b);
+                const __m256i h_a = _mm256_cmpgt_epi32(hi, d_a), h_b = _mm256_cmpgt_epi32(hi, d_b);
+                gt_a = _mm256_sub_epi32(gt_a, l_a);
+                gt_b = _mm256_sub_epi32(gt_b, l_b);
+                ge_a = _mm256_sub_epi32(ge_a, h_a);
+                ge_b = _mm256_sub_epi32(ge_b, h_b);
+                eq_a = _mm256_sub_epi32(eq_a, _mm256_andnot_si256(h_a, l_a));
+                eq_b = _mm256_sub_epi32(eq_b, _mm256_andnot_si256(h_b, l_b));
+            }
+        } else {
+            for (uint32_t k = 0; k < n; ++k) {
+                const __m256i lo = _mm256_set1_epi32(s->lo[k]), hi = _mm256_set1_epi32(s->hi[k]);
+                gt_a = _mm256_sub_epi32(gt_a, _mm256_cmpgt_epi32(lo, c_a));
+                gt_b = _mm256_sub_epi32(gt_b, _mm256_cmpgt_epi32(lo, c_b));
+                ge_a = _mm256_sub_epi32(ge_a, _mm256_cmpgt_epi32(hi, d_a));
+                ge_b = _mm256_sub_epi32(ge_b, _mm256_cmpgt_epi32(hi, d_b));
+            }
         }
-        for (uint32_t k = 0; k < s->n_flat; ++k) {
-            const __m256 f = _mm256_broadcast_ss(&s->flat[k]);
-            nl0 = _mm256_sub_epi32(nl0, _mm256_castps_si256(_mm256_cmp_ps(f, pos, _CMP_LT_OQ)));
-            nr0 = _mm256_sub_epi32(nr0, _mm256_castps_si256(_mm256_cmp_ps(f, pos, _CMP_GT_OQ)));
-            p_eq = _mm256_sub_epi32(p_eq, _mm256_castps_si256(_mm256_cmp_ps(f, pos, _CMP_EQ_OQ)));
-        }
-        /* price_planes4's steps. */
-        const __m256i nl = _mm256_add_epi32(nl0, p_eq), nr = _mm256_add_epi32(nr0, p_eq);
-        const __m256 al = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(pos, lo)));
-        const __m256 ar = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(hi, pos)));
-        const __m256i empty_l = _mm256_or_si256(_mm256_cmpeq_epi32(nl, zero), _mm256_cmpeq_epi32(nr0, zero));
-        const __m256i empty_r = _mm256_or_si256(_mm256_cmpeq_epi32(nl0, zero), _mm256_cmpeq_epi32(nr, zero));
-        const __m256 lambda_l = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_l));
-        const __m256 lambda_r = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_r));
-        const __m256 cost_l = _mm256_mul_ps(
-            lambda_l, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl)),
-                                                                         _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr0))))));
-        const __m256 cost_r = _mm256_mul_ps(
-            lambda_r, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl0)),
-                                                                         _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr))))));
-        /* Lanes past the last candidate price as infinite. */
-        const __m256 real =
-            _mm256_castsi256_ps(_mm256_cmpgt_epi32(n_cand, _mm256_add_epi32(_mm256_set1_epi32((int)j), lane)));
-        const __m256 cost = _mm256_blendv_ps(inf, _mm256_min_ps(cost_l, cost_r), real);
-        _mm256_storeu_ps(&s->cost[j], cost);
-        _mm256_storeu_si256((__m256i *)&s->nl0[j], nl0);
-        _mm256_storeu_si256((__m256i *)&s->nr0[j], nr0);
-        _mm256_storeu_si256((__m256i *)&s->in_plane[j], p_eq);
-        low = _mm256_min_ps(low, cost);
+        low = _mm256_min_ps(low, price_small_eight(s, j, c_a, _mm256_sub_epi32(count, gt_a), ge_a, eq_a, sp));
+        if (j + 8 < s->n_cand)
+            low = _mm256_min_ps(low, price_small_eight(s, j + 8, c_b, _mm256_sub_epi32(count, gt_b), ge_b, eq_b, sp));
     }
     const __m128 four = _mm_min_ps(_mm256_castps256_ps128(low), _mm256_extractf128_ps(low, 1));
     return lowest4(four);
 }
 #endif
 
-static float price_small_axis(small_axis *s, const sweep_prices *sp, int sse2_only)
+/* The form a small node's chooser takes: the fastest this processor has
+ * (KD_CHOOSE_SMALL), or the SSE2 or the plain one (their tests). */
+static float price_small_axis(small_axis *s, uint32_t n, const sweep_prices *sp, int form)
 {
 #if defined(KD_SMALL_AVX2)
-    if (!sse2_only && as_cpu_has_avx2()) return price_small_axis_avx2(s, sp);
+    if (form == KD_CHOOSE_SMALL && as_cpu_has_avx2()) return price_small_axis_avx2(s, n, sp);
 #endif
-    (void)sse2_only;
 #if defined(__SSE2__)
-    /* Each reference's bounds in every lane, the references with extent
-     * padded to an even count with one that is on no side. */
-    __m128 lo4[SMALL_NODE_REFS + 1], hi4[SMALL_NODE_REFS + 1], flat4[SMALL_NODE_REFS];
-    for (uint32_t k = 0; k < s->n_lo; ++k) {
-        lo4[k] = _mm_set1_ps(s->lo[k]);
-        hi4[k] = _mm_set1_ps(s->hi[k]);
-    }
-    lo4[s->n_lo] = _mm_set1_ps(INFINITY);
-    hi4[s->n_lo] = _mm_set1_ps(-INFINITY);
-    for (uint32_t k = 0; k < s->n_flat; ++k) flat4[k] = _mm_set1_ps(s->flat[k]);
-    const __m128i zero = _mm_setzero_si128();
-    __m128 low = _mm_set1_ps(INFINITY);
-    /* Eight candidates at a time. A reference with extent is below a plane
-     * it starts at or before, above one it ends at or after; a flat one is
-     * below, above or in the plane. The masks are -1 where true. */
-    for (uint32_t j = 0; j < s->n_cand; j += 8) {
-        const __m128 pos_a = _mm_loadu_ps(&s->cand[j]), pos_b = _mm_loadu_ps(&s->cand[j + 4]);
-        __m128i nl0_a = zero, nr0_a = zero, p_eq_a = zero, nl0_b = zero, nr0_b = zero, p_eq_b = zero;
-        for (uint32_t k = 0; k < s->n_lo; k += 2) {
-            nl0_a = _mm_sub_epi32(nl0_a, _mm_castps_si128(_mm_cmple_ps(lo4[k], pos_a)));
-            nl0_b = _mm_sub_epi32(nl0_b, _mm_castps_si128(_mm_cmple_ps(lo4[k], pos_b)));
-            nr0_a = _mm_sub_epi32(nr0_a, _mm_castps_si128(_mm_cmpge_ps(hi4[k], pos_a)));
-            nr0_b = _mm_sub_epi32(nr0_b, _mm_castps_si128(_mm_cmpge_ps(hi4[k], pos_b)));
-            nl0_a = _mm_sub_epi32(nl0_a, _mm_castps_si128(_mm_cmple_ps(lo4[k + 1], pos_a)));
-            nl0_b = _mm_sub_epi32(nl0_b, _mm_castps_si128(_mm_cmple_ps(lo4[k + 1], pos_b)));
-            nr0_a = _mm_sub_epi32(nr0_a, _mm_castps_si128(_mm_cmpge_ps(hi4[k + 1], pos_a)));
-            nr0_b = _mm_sub_epi32(nr0_b, _mm_castps_si128(_mm_cmpge_ps(hi4[k + 1], pos_b)));
-        }
-        for (uint32_t k = 0; k < s->n_flat; ++k) {
-            nl0_a = _mm_sub_epi32(nl0_a, _mm_castps_si128(_mm_cmplt_ps(flat4[k], pos_a)));
-            nl0_b = _mm_sub_epi32(nl0_b, _mm_castps_si128(_mm_cmplt_ps(flat4[k], pos_b)));
-            nr0_a = _mm_sub_epi32(nr0_a, _mm_castps_si128(_mm_cmpgt_ps(flat4[k], pos_a)));
-            nr0_b = _mm_sub_epi32(nr0_b, _mm_castps_si128(_mm_cmpgt_ps(flat4[k], pos_b)));
-            p_eq_a = _mm_sub_epi32(p_eq_a, _mm_castps_si128(_mm_cmpeq_ps(flat4[k], pos_a)));
-            p_eq_b = _mm_sub_epi32(p_eq_b, _mm_castps_si128(_mm_cmpeq_ps(flat4[k], pos_b)));
-        }
-        low = _mm_min_ps(low, price_small_four(s, j, pos_a, nl0_a, nr0_a, p_eq_a, sp));
-        low = _mm_min_ps(low, price_small_four(s, j + 4, pos_b, nl0_b, nr0_b, p_eq_b, sp));
-    }
-    return lowest4(low);
-#else
-    float low = INFINITY;
-    for (uint32_t j = 0; j < s->n_cand; ++j) {
-        const float pos = s->cand[j];
-        uint32_t nl0 = 0, nr0 = 0, p_eq = 0;
-        for (uint32_t k = 0; k < s->n_lo; ++k) {
-            nl0 += s->lo[k] <= pos;
-            nr0 += s->hi[k] >= pos;
-        }
-        for (uint32_t k = 0; k < s->n_flat; ++k) {
-            nl0 += s->flat[k] < pos;
-            nr0 += s->flat[k] > pos;
-            p_eq += s->flat[k] == pos;
-        }
-        s->cost[j] = price_plane(pos, nl0, nr0, p_eq, sp);
-        s->nl0[j] = nl0;
-        s->nr0[j] = nr0;
-        s->in_plane[j] = p_eq;
-        low = s->cost[j] < low ? s->cost[j] : low;
-    }
-    return low;
+    if (form != KD_CHOOSE_SMALL_PLAIN) return price_small_axis_sse2(s, n, sp);
 #endif
-}
-
-/* The three axes of a small node, from one pass over its references:
- * each reference's bounds go to the flat or the extended ones, and those
- * strictly inside the box to the candidates. */
-static void small_axes_fill(small_axis axes[3], const kd_ref *refs, uint32_t n, const float box[6])
-{
-    uint32_t n_lo[3] = {0, 0, 0}, n_flat[3] = {0, 0, 0}, n_cand[3] = {0, 0, 0};
-#if defined(__SSE2__)
-    const __m128 box_lo = _mm_setr_ps(box[0], box[1], box[2], 0.0f), box_hi = _mm_setr_ps(box[3], box[4], box[5], 0.0f);
-#endif
-    for (uint32_t i = 0; i < n; ++i) {
-        const kd_ref *r = &refs[i];
-#if defined(__SSE2__)
-        /* lo with the first of hi after it, hi with the id's bits (a float
-         * below 2, never a NaN); the fourth lane is dropped. */
-        const __m128 l = _mm_loadu_ps(r->lo), h = _mm_loadu_ps(r->hi);
-        const unsigned flat = (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(l, h));
-        const unsigned l_in = (unsigned)_mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(l, box_lo), _mm_cmplt_ps(l, box_hi)));
-        const unsigned h_in =
-            (unsigned)_mm_movemask_ps(_mm_and_ps(_mm_cmpgt_ps(h, box_lo), _mm_cmplt_ps(h, box_hi))) & ~flat;
-#else
-        unsigned flat = 0, l_in = 0, h_in = 0;
-        for (int a = 0; a < 3; ++a) {
-            flat |= (unsigned)(r->lo[a] == r->hi[a]) << a;
-            l_in |= (unsigned)(r->lo[a] > box[a] && r->lo[a] < box[a + 3]) << a;
-            h_in |= (unsigned)(r->lo[a] != r->hi[a] && r->hi[a] > box[a] && r->hi[a] < box[a + 3]) << a;
-        }
-#endif
-        for (int a = 0; a < 3; ++a) {
-            small_axis *s = &axes[a];
-            const float lo = r->lo[a], hi = r->hi[a];
-            const unsigned is_flat = (flat >> a) & 1u;
-            s->flat[n_flat[a]] = lo;
-            n_flat[a] += is_flat;
-            s->lo[n_lo[a]] = lo;
-            s->hi[n_lo[a]] = hi;
-            n_lo[a] += is_flat ^ 1u;
-            s->cand[n_cand[a]] = lo;
-            n_cand[a] += (l_in >> a) & 1u;
-            s->cand[n_cand[a]] = hi;
-            n_cand[a] += (h_in >> a) & 1u;
-        }
-    }
-    for (int a = 0; a < 3; ++a) {
-        axes[a].n_lo = n_lo[a];
-        axes[a].n_flat = n_flat[a];
-        axes[a].n_cand = n_cand[a];
-    }
+    (void)form;
+    return price_small_axis_plain(s, n, sp);
 }
 
 static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, const float box[6], kd_split *out)
@@ -1481,46 +1585,63 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
     double best = limit;
     int found = 0;
     small_axis axes[3];
-    small_axes_fill(axes, refs, n, box);
+#if defined(KD_SMALL_AVX2)
+    if (c->small_form == KD_CHOOSE_SMALL && as_cpu_has_avx2()) small_axes_fill_avx2(axes, refs, n, box);
+    else
+#endif
+        small_axes_fill(axes, refs, n, box);
+    exact_prices ep[3];
+    int filter[3];
+    /* Every axis priced in single precision first: only planes near the
+     * lowest of all three can be the node's (the sweep's argument, across
+     * the axes), so only those are priced exactly. */
+    double threshold = limit * (1.0 + SWEEP_MARGIN);
     for (int axis = 0; axis < 3; ++axis) {
-        const float box_lo = box[axis], box_hi = box[axis + 3];
-        if (!(box_hi > box_lo)) continue;
         small_axis *const sa = &axes[axis];
+        filter[axis] = 1;
+        if (!(box[axis + 3] > box[axis])) {
+            sa->n_cand = 0;
+            continue;
+        }
         sweep_prices sp;
-        exact_prices ep;
-        const int filter = axis_prices(box, axis, area, ct, ci, &sp, &ep);
-        /* The vector loop's lanes past the last candidate hold a number: a
-         * NaN there would raise the invalid flag in the caller's
-         * floating-point environment. */
-        for (uint32_t j = sa->n_cand; j < sa->n_cand + 8; ++j) sa->cand[j] = box_lo;
-        const double low = (double)price_small_axis(sa, &sp, c->small_sse2_only) * (1.0 + SWEEP_MARGIN);
-        sweep_best b = {limit, limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
-        if (low < b.threshold) b.threshold = low;
+        filter[axis] = axis_prices(box, axis, area, ct, ci, &sp, &ep[axis]);
+        /* The vector loops' lanes past the last candidate hold a position
+         * in the box: a NaN there would raise the invalid flag in the
+         * caller's floating-point environment. */
+        const int32_t inside = small_key(box[axis]);
 #if defined(__SSE2__)
-        if (filter) {
+        for (uint32_t j = 0; j < 16; j += 4) _mm_storeu_si128((__m128i *)&sa->cand[sa->n_cand + j], _mm_set1_epi32(inside));
+#else
+        for (uint32_t j = sa->n_cand; j < sa->n_cand + 16; ++j) sa->cand[j] = inside;
+#endif
+        const double low = (double)price_small_axis(sa, n, &sp, c->small_form) * (1.0 + SWEEP_MARGIN);
+        if (filter[axis] && low < threshold) threshold = low;
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+        small_axis *const sa = &axes[axis];
+        sweep_best b = {limit, filter[axis] ? threshold : limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
+#if defined(__SSE2__)
+        if (filter[axis] && c->small_form != KD_CHOOSE_SMALL_PLAIN) {
             /* As the sweep's filter: four single-precision costs against
              * the threshold rounded up to a float in one compare, the few
              * that pass tested again exactly. The costs past the last
-             * candidate are infinite (price_small_axis writes whole blocks
-             * of eight): no lane mask, which cost more than the loop. */
+             * candidate are infinite (the pricing writes whole blocks). */
+            __m128 t = _mm_set1_ps(threshold_float(&b));
             for (uint32_t q = 0; q < sa->n_cand; q += 4) {
-                unsigned lanes =
-                    (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), _mm_set1_ps(threshold_float(&b))));
+                unsigned lanes = (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), t));
                 while (lanes) {
                     const uint32_t j = q + (uint32_t)__builtin_ctz(lanes);
                     lanes &= lanes - 1u;
                     if (!((double)sa->cost[j] <= b.threshold)) continue;
-                    /* The sweep's position of a group: a key, in which -0 is 0. */
-                    const float pos = sa->cand[j] == 0.0f ? 0.0f : sa->cand[j];
-                    price_plane_exactly(pos, sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep, &b);
+                    price_plane_exactly(small_key_float(sa->cand[j]), sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep[axis], &b);
+                    t = _mm_set1_ps(threshold_float(&b));
                 }
             }
         } else
 #endif
             for (uint32_t j = 0; j < sa->n_cand; ++j) {
-                if (filter && !((double)sa->cost[j] <= b.threshold)) continue;
-                const float pos = sa->cand[j] == 0.0f ? 0.0f : sa->cand[j];
-                price_plane_exactly(pos, sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep, &b);
+                if (filter[axis] && !((double)sa->cost[j] <= b.threshold)) continue;
+                price_plane_exactly(small_key_float(sa->cand[j]), sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep[axis], &b);
             }
         if (b.found && b.cost < best) {
             best = b.cost;
@@ -1584,7 +1705,7 @@ int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_
     memset(&c, 0, sizeof c);
     c.args = args;
     c.mesh = &mesh;
-    c.small_sse2_only = how == KD_CHOOSE_SMALL_SSE2;
+    c.small_form = how;
     if (how != KD_CHOOSE_SWEEP) return n <= SMALL_NODE_REFS ? sah_choose(&c, NULL, refs, n, box, 0, out) : -1;
     sah_events *e = sah_root_events(&c, refs, n);
     if (!e) return -1;
