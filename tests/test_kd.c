@@ -727,7 +727,8 @@ static void small_nodes_choose_the_sweeps_plane(void)
         a.thread_count = 1;
         a.cost_traversal = costs[it % 5][0];
         a.cost_intersection = costs[it % 5][1];
-        const uint32_t n = 1 + (uint32_t)(ref_rand01(&st) * 31.999);
+        /* Up to the largest node without event lists (64 references). */
+        const uint32_t n = 1 + (uint32_t)(ref_rand01(&st) * 63.999);
         /* Boxes on a coarse grid, so that bounds coincide, lie on the
          * faces and tie; some flat along an axis, some crossing zero. */
         float box[6];
@@ -735,7 +736,7 @@ static void small_nodes_choose_the_sweeps_plane(void)
             box[k] = -0.25f * (float)(int)(ref_rand01(&st) * 8.0);
             box[k + 3] = ref_rand01(&st) < 0.04 ? box[k] : 0.25f * (float)(1 + (int)(ref_rand01(&st) * 8.0));
         }
-        kd_ref refs[32];
+        kd_ref refs[64];
         uint32_t id = 0;
         for (uint32_t i = 0; i < n; ++i) {
             id += 1 + (uint32_t)(ref_rand01(&st) * 3.0);

@@ -118,7 +118,9 @@ static kd_scratch *scratch_get(kd_run *run)
     if (s) return s;
     s = calloc(1, sizeof *s);
     if (s && run->c->ops->child_states)
-        s->side = malloc(sizeof(uint16_t) * (run->c->mesh->triangle_count ? run->c->mesh->triangle_count : 1));
+        /* One spare entry: the SAH builder reads side[] four bytes at a
+         * time. */
+        s->side = calloc((size_t)run->c->mesh->triangle_count + 1, sizeof(uint16_t));
     if (!s || (run->c->ops->child_states && !s->side)) {
         free(s);
         return NULL;

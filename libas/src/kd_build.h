@@ -133,7 +133,7 @@ void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const flo
 /* The SAH builder's plane for a node of n references (in increasing id
  * order) inside box: chosen by sweeping the node's sorted event lists
  * (KD_CHOOSE_SWEEP), or as a small node chooses it, from the references
- * themselves (n at most 32): in the form the build uses on this processor
+ * themselves (n at most 64): in the form the build uses on this processor
  * (KD_CHOOSE_SMALL: AVX2 where it has it), in the SSE2 form
  * (KD_CHOOSE_SMALL_SSE2) or in the plain one (KD_CHOOSE_SMALL_PLAIN, the
  * form without vector units). Returns 1 with the plane, 0 when the node is

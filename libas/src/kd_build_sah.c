@@ -45,6 +45,13 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+/* Loops that have an AVX2 form, chosen at run time (as_cpu_has_avx2): the
+ * functions may use AVX2, never FMA, so they compute what the others do. */
+#if defined(__x86_64__) && defined(__GNUC__)
+#define KD_AVX2 1
+#include <immintrin.h>
+#include <pthread.h>
+#endif
 
 enum { EV_END = 0, EV_PLANAR = 1, EV_START = 2 };
 
@@ -143,7 +150,7 @@ typedef struct sah_events {
 
 /* Nodes of at most this many references choose their planes without
  * event lists (sah_choose_small). */
-#define SMALL_NODE_REFS 32
+#define SMALL_NODE_REFS 64
 
 static unsigned axis_threads(const kd_ctx *c, const sah_events *e, uint32_t n)
 {
@@ -187,17 +194,20 @@ static void for_each_axis(unsigned threads, void (*fn)(void *user, int axis), vo
     as_parallel_run(threads, axis_job_run, &j);
 }
 
-/* Each list has one spare slot: the children's lists are filled by writing
- * every event and advancing only past the kept ones, and a finished list
- * ends there with a sentinel above every event (UINT64_MAX, whose key no
- * finite position has), so the sweep can read one event past the last. */
+/* Each list has spare slots: the children's lists are filled by writing
+ * every event (four at a time with AVX2) and advancing only past the kept
+ * ones, and a finished list ends there with a sentinel above every event
+ * (UINT64_MAX, whose key no finite position has), so the sweep can read
+ * one event past the last. */
+#define EVENTS_SPARE 4
+
 static sah_events *events_alloc(size_t per_axis)
 {
-    sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + 1));
+    sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + EVENTS_SPARE));
     if (!e) return NULL;
     uint64_t *base = (uint64_t *)(e + 1);
     for (int a = 0; a < 3; ++a) {
-        e->list[a] = base + (size_t)a * (per_axis + 1);
+        e->list[a] = base + (size_t)a * (per_axis + EVENTS_SPARE);
         e->count[a] = 0;
     }
     return e;
@@ -508,6 +518,85 @@ typedef struct child_job {
     uint64_t *fresh[3];  /* per axis: both sides' clipped references' events, then the sort's scratch */
 } child_job;
 
+/* Runs of the parent's events below both children's next fresh events
+ * (nothing to merge in among them), from k on in blocks of four: each
+ * written to both children's lists and kept by advancing (KD_KEEP_BIT of
+ * the event's bound). Returns where the runs end; writes up to three
+ * words past a list's last event (EVENTS_SPARE). */
+typedef struct kept_run {
+    const uint64_t *src;
+    size_t m;
+    const uint16_t *keep;
+    int axis;
+    unsigned kept[2]; /* 1 for a child with lists, 0 for one without (its events go to a spare) */
+    uint64_t *out[2];
+    size_t n[2];
+} kept_run;
+
+static size_t kept_runs(kept_run *r, size_t k, uint64_t below)
+{
+    const uint64_t *const src = r->src;
+    uint64_t *const o0 = r->out[0], *const o1 = r->out[1];
+    size_t n0 = r->n[0], n1 = r->n[1];
+    const unsigned kept0 = r->kept[0], kept1 = r->kept[1];
+    const int a2 = r->axis * 2;
+    for (; k + 4 <= r->m && src[k + 3] < below; k += 4)
+        for (int u = 0; u < 4; ++u) {
+            const uint64_t ev = src[k + u];
+            const unsigned f = (unsigned)r->keep[event_index(ev)] >> (a2 + (event_kind(ev) == EV_END));
+            o0[n0] = ev;
+            o1[n1] = ev;
+            n0 += f & kept0;
+            n1 += (f >> 6) & kept1;
+        }
+    r->n[0] = n0;
+    r->n[1] = n1;
+    return k;
+}
+
+#if defined(KD_AVX2)
+/* For each mask of four 64-bit lanes, the 32-bit lanes that pack the kept
+ * ones in order. */
+static const int32_t kept_pack4[16][8] = {
+    {0, 1, 0, 1, 0, 1, 0, 1}, {0, 1, 0, 1, 0, 1, 0, 1}, {2, 3, 0, 1, 0, 1, 0, 1}, {0, 1, 2, 3, 0, 1, 0, 1},
+    {4, 5, 0, 1, 0, 1, 0, 1}, {0, 1, 4, 5, 0, 1, 0, 1}, {2, 3, 4, 5, 0, 1, 0, 1}, {0, 1, 2, 3, 4, 5, 0, 1},
+    {6, 7, 0, 1, 0, 1, 0, 1}, {0, 1, 6, 7, 0, 1, 0, 1}, {2, 3, 6, 7, 0, 1, 0, 1}, {0, 1, 2, 3, 6, 7, 0, 1},
+    {4, 5, 6, 7, 0, 1, 0, 1}, {0, 1, 4, 5, 6, 7, 0, 1}, {2, 3, 4, 5, 6, 7, 0, 1}, {0, 1, 2, 3, 4, 5, 6, 7},
+};
+
+/* kept_runs four events at a time: their keep bits gathered (two bytes
+ * each, read as four: side[] has a spare entry), shifted per lane to the
+ * event's bound, and the kept events packed by a permutation. */
+__attribute__((target("avx2"))) static size_t kept_runs_avx2(kept_run *r, size_t k, uint64_t below)
+{
+    const uint64_t *const src = r->src;
+    uint64_t *const o0 = r->out[0], *const o1 = r->out[1];
+    size_t n0 = r->n[0], n1 = r->n[1];
+    const int mask0 = r->kept[0] ? 0xf : 0, mask1 = r->kept[1] ? 0xf : 0;
+    const __m256i low_halves = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
+    const __m128i index_mask = _mm_set1_epi32((int)EV_INDEX_MASK), a2 = _mm_set1_epi32(r->axis * 2);
+    for (; k + 4 <= r->m && src[k + 3] < below; k += 4) {
+        const __m256i ev = _mm256_loadu_si256((const __m256i *)(src + k));
+        /* Each event's low word: its kind (bits 30-31) and index. */
+        const __m128i w = _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(ev, low_halves));
+        const __m128i bits = _mm_i32gather_epi32((const int *)r->keep, _mm_and_si128(w, index_mask), 2);
+        const __m128i is_end = _mm_cmpeq_epi32(_mm_srli_epi32(w, EV_INDEX_BITS), _mm_setzero_si128());
+        const __m128i f = _mm_srlv_epi32(bits, _mm_sub_epi32(a2, is_end));
+        const int m0 = _mm_movemask_ps(_mm_castsi128_ps(_mm_slli_epi32(f, 31))) & mask0;
+        const int m1 = _mm_movemask_ps(_mm_castsi128_ps(_mm_slli_epi32(f, 25))) & mask1;
+        _mm256_storeu_si256((__m256i *)(o0 + n0),
+                            _mm256_permutevar8x32_epi32(ev, _mm256_loadu_si256((const __m256i *)kept_pack4[m0])));
+        _mm256_storeu_si256((__m256i *)(o1 + n1),
+                            _mm256_permutevar8x32_epi32(ev, _mm256_loadu_si256((const __m256i *)kept_pack4[m1])));
+        n0 += (size_t)__builtin_popcount((unsigned)m0);
+        n1 += (size_t)__builtin_popcount((unsigned)m1);
+    }
+    r->n[0] = n0;
+    r->n[1] = n1;
+    return k;
+}
+#endif
+
 /* One axis of both children: the parent's events of references that reach
  * a child unchanged, merged, in the same pass, with the sorted events of the
  * clipped ones. A fresh list ends with a sentinel above every event, so the
@@ -532,19 +621,35 @@ static void child_axis_events(void *user, int a)
     }
     const uint16_t *const keep = how->side;
     /* A small child gets no lists (SMALL_NODE_REFS): its events are all
-     * written to one spare word, none kept. */
-    uint64_t spare[2];
+     * written to spare words, none kept. */
+    uint64_t spare[EVENTS_SPARE];
     uint64_t *o0 = e[0] ? e[0]->list[a] : spare, *o1 = e[1] ? e[1]->list[a] : spare;
     const unsigned kept0 = e[0] ? 1u : 0u, kept1 = e[1] ? 1u : 0u;
     const uint64_t *f0 = fresh[0], *f1 = fresh[1];
     size_t n0 = 0, n1 = 0;
     const uint64_t *src = cj->parent->list[a];
     const size_t m = cj->parent->count[a];
+    kept_run run = {src, m, keep, a, {kept0, kept1}, {o0, o1}, {0, 0}};
+#if defined(KD_AVX2)
+    const int avx2 = as_cpu_has_avx2();
+#endif
     /* The next fresh events live in registers: the compiler must assume
      * the children's stores can change the fresh lists, and would load
      * them again after every event. */
     uint64_t y0 = *f0, y1 = *f1;
     for (size_t k = 0; k < m; ++k) {
+        /* Most events lie between two fresh ones: the runs take them. */
+        run.n[0] = n0;
+        run.n[1] = n1;
+        const uint64_t below = y0 < y1 ? y0 : y1;
+#if defined(KD_AVX2)
+        k = avx2 ? kept_runs_avx2(&run, k, below) : kept_runs(&run, k, below);
+#else
+        k = kept_runs(&run, k, below);
+#endif
+        n0 = run.n[0];
+        n1 = run.n[1];
+        if (k == m) break;
         const uint64_t ev = src[k];
         /* Both children's bits for this axis and bound: one shift. */
         const unsigned f = (unsigned)keep[event_index(ev)] >> (a * 2 + (event_kind(ev) == EV_END));
@@ -1392,10 +1497,7 @@ static float price_small_axis_sse2(small_axis *s, uint32_t n, const sweep_prices
 }
 #endif
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#define KD_SMALL_AVX2 1
-#include <immintrin.h>
-#include <pthread.h>
+#if defined(KD_AVX2)
 
 /* For each 8-bit lane mask, the indices of its set lanes in order (one
  * byte each): a permutation that packs the lanes a mask keeps. */
@@ -1564,7 +1666,7 @@ __attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s
  * (KD_CHOOSE_SMALL), or the SSE2 or the plain one (their tests). */
 static float price_small_axis(small_axis *s, uint32_t n, const sweep_prices *sp, int form)
 {
-#if defined(KD_SMALL_AVX2)
+#if defined(KD_AVX2)
     if (form == KD_CHOOSE_SMALL && as_cpu_has_avx2()) return price_small_axis_avx2(s, n, sp);
 #endif
 #if defined(__SSE2__)
@@ -1585,7 +1687,7 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
     double best = limit;
     int found = 0;
     small_axis axes[3];
-#if defined(KD_SMALL_AVX2)
+#if defined(KD_AVX2)
     if (c->small_form == KD_CHOOSE_SMALL && as_cpu_has_avx2()) small_axes_fill_avx2(axes, refs, n, box);
     else
 #endif
