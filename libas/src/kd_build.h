@@ -129,6 +129,11 @@ void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dl
 void kd_clip_reference(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out);
 void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], int axis, float pos,
                              kd_ref out[2]);
+/* kd_clip_reference_split runs in the fastest form this processor has (with
+ * AVX2 where it has it); the portable form (SSE2, or plain without it) gives
+ * the same bits, which test_kd holds them to. */
+void kd_clip_reference_split_portable(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], int axis,
+                                      float pos, kd_ref out[2]);
 
 /* The SAH builder's plane for a node of n references (in increasing id
  * order) inside box: chosen by sweeping the node's sorted event lists
