@@ -1178,6 +1178,61 @@ static inline void price_group_exactly(const sweep_chunk *g, size_t q, const swe
     price_plane_exactly(key_float(key), nl0, nr0, p_eq, ep, b);
 }
 
+/* Pass 1 of sweep_range over events [c, c_end): each group's last event
+ * and counts into g from index k on, *counts running; returns the next k. */
+static size_t sweep_groups(const uint64_t *ev, size_t c, size_t c_end, size_t k, uint64_t *counts_io, sweep_chunk *g)
+{
+    uint64_t counts = *counts_io;
+    uint64_t e = ev[c];
+    for (size_t i = c; i < c_end; ++i) {
+        const uint64_t next = ev[i + 1]; /* the sentinel ends the last group */
+        counts += sweep_count_step[event_kind(e)];
+        g->key_events[k] = (e & 0xffffffff00000000u) | (uint32_t)(i + 1);
+        g->counts[k] = counts;
+        k += event_key(next) != event_key(e);
+        e = next;
+    }
+    *counts_io = counts;
+    return k;
+}
+
+#if defined(KD_AVX2)
+/* sweep_groups four events at a time: the counts summed across the lanes,
+ * and the lanes that end a group packed by a permutation (a group's last
+ * event is the one the plain form leaves in its slot). */
+__attribute__((target("avx2"))) static size_t sweep_groups_avx2(const uint64_t *ev, size_t c, size_t c_end, size_t k,
+                                                                uint64_t *counts_io, sweep_chunk *g)
+{
+    const __m256i zero = _mm256_setzero_si256(), kind_mask = _mm256_set1_epi64x(3);
+    const __m256i end_step = _mm256_set1_epi64x(1), planar_step = _mm256_set1_epi64x((int64_t)1 << 32);
+    const __m256i key_mask = _mm256_set1_epi64x((int64_t)0xffffffff00000000u), lane = _mm256_setr_epi64x(1, 2, 3, 4);
+    __m256i counts = _mm256_set1_epi64x((int64_t)*counts_io);
+    size_t i = c;
+    for (; i + 4 <= c_end; i += 4) {
+        const __m256i e = _mm256_loadu_si256((const __m256i *)(ev + i));
+        const __m256i next = _mm256_loadu_si256((const __m256i *)(ev + i + 1));
+        const __m256i kind = _mm256_and_si256(_mm256_srli_epi64(e, EV_INDEX_BITS), kind_mask);
+        __m256i step = _mm256_or_si256(_mm256_and_si256(_mm256_cmpeq_epi64(kind, zero), end_step),
+                                       _mm256_and_si256(_mm256_cmpeq_epi64(kind, end_step), planar_step));
+        /* Inclusive sums across the four lanes, then the running count. */
+        step = _mm256_add_epi64(step, _mm256_blend_epi32(_mm256_permute4x64_epi64(step, _MM_SHUFFLE(2, 1, 0, 0)), zero, 0x03));
+        step = _mm256_add_epi64(step, _mm256_blend_epi32(_mm256_permute4x64_epi64(step, _MM_SHUFFLE(1, 0, 0, 0)), zero, 0x0f));
+        const __m256i sums = _mm256_add_epi64(step, counts);
+        counts = _mm256_permute4x64_epi64(sums, _MM_SHUFFLE(3, 3, 3, 3));
+        const __m256i key_events =
+            _mm256_or_si256(_mm256_and_si256(e, key_mask), _mm256_add_epi64(lane, _mm256_set1_epi64x((int64_t)i)));
+        const __m256i same = _mm256_cmpeq_epi64(_mm256_srli_epi64(_mm256_xor_si256(e, next), 32), zero);
+        const int ends = ~_mm256_movemask_pd(_mm256_castsi256_pd(same)) & 0xf;
+        const __m256i pack = _mm256_loadu_si256((const __m256i *)kept_pack4[ends]);
+        _mm256_storeu_si256((__m256i *)&g->key_events[k], _mm256_permutevar8x32_epi32(key_events, pack));
+        _mm256_storeu_si256((__m256i *)&g->counts[k], _mm256_permutevar8x32_epi32(sums, pack));
+        k += (size_t)__builtin_popcount((unsigned)ends);
+    }
+    *counts_io = (uint64_t)_mm256_extract_epi64(counts, 0);
+    return i < c_end ? sweep_groups(ev, i, c_end, k, counts_io, g) : k;
+}
+#endif
+
 /* Sweeps events [begin, end) of the axis's list, which start a group and
  * end one, with `ends0` END and `planars0` PLANAR events before them, into
  * *b: the first plane of the lowest cost below the limit. */
@@ -1196,20 +1251,18 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
     sweep_best best = {cj->limit, cj->limit * (1.0 + SWEEP_MARGIN), 0.0f, 0, 0, {0, 0}};
     sweep_chunk g;
     uint64_t counts = ((uint64_t)planars0 << 32) | ends0;
+#if defined(KD_AVX2)
+    const int avx2 = as_cpu_has_avx2();
+#endif
     g.key_events[0] = begin;
     g.counts[0] = counts;
     for (size_t c = begin; c < end; c += SWEEP_CHUNK) {
         const size_t c_end = end - c < SWEEP_CHUNK ? end : c + SWEEP_CHUNK;
-        size_t k = 1;
-        uint64_t e = ev[c];
-        for (size_t i = c; i < c_end; ++i) {
-            const uint64_t next = ev[i + 1]; /* the sentinel ends the last group */
-            counts += sweep_count_step[event_kind(e)];
-            g.key_events[k] = (e & 0xffffffff00000000u) | (uint32_t)(i + 1);
-            g.counts[k] = counts;
-            k += event_key(next) != event_key(e);
-            e = next;
-        }
+#if defined(KD_AVX2)
+        const size_t k = avx2 ? sweep_groups_avx2(ev, c, c_end, 1, &counts, &g) : sweep_groups(ev, c, c_end, 1, &counts, &g);
+#else
+        const size_t k = sweep_groups(ev, c, c_end, 1, &counts, &g);
+#endif
         /* Only groups near the chunk's lowest can hold its best plane. */
         const double chunk_threshold = (double)price_groups(&g, k, &sp) * (1.0 + SWEEP_MARGIN);
         if (chunk_threshold < best.threshold) best.threshold = chunk_threshold;
