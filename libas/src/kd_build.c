@@ -577,16 +577,14 @@ __attribute__((target("avx2"))) static inline void clipped_ref_avx2(const kd_ref
 /* A mask of the lane of one axis, per axis. */
 static const int64_t clip_axis_lane[3][4] = {{-1, 0, 0, 0}, {0, -1, 0, 0}, {0, 0, -1, 0}};
 
-/* clip_ref_split with each vertex in one vector of four doubles (x, y, z,
+/* clip_triangle with each vertex in one vector of four doubles (x, y, z,
  * and a zero), on processors with AVX2: the same operations in the same
  * order (no fused multiply-add), so the same bits, in about half the
- * instructions of the SSE2 form's two vectors per vertex. */
-__attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t *tris, const kd_ref *old,
-                                                                const float node_box[6], const float box[2][6], int axis,
-                                                                float pos, kd_ref *out[2])
+ * instructions of two vectors per vertex. The polygon is in poly[*cur], its
+ * first vertex repeated after the last; returns its vertex count. */
+__attribute__((target("avx2"), always_inline)) static inline int clip_triangle_avx2(const as_tri4_t *t, const float box[6],
+                                                              double poly[2][10][4], int *cur_out)
 {
-    _Alignas(32) double poly[2][10][4];
-    const as_tri4_t *t = &tris[old->id];
     /* The fourth float (an index's bits in v0) is not converted: it may
      * read as a signaling NaN. */
     const __m128 xyz = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
@@ -596,9 +594,9 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
     _mm256_store_pd(poly[0][0], v0);
     _mm256_store_pd(poly[0][1], v1);
     _mm256_store_pd(poly[0][2], v2);
-    /* clip_triangle: only planes that some vertex is outside of. */
-    const __m256d box_lo = _mm256_cvtps_pd(_mm_setr_ps(node_box[0], node_box[1], node_box[2], 0.0f));
-    const __m256d box_hi = _mm256_cvtps_pd(_mm_setr_ps(node_box[3], node_box[4], node_box[5], 0.0f));
+    /* Only planes that some vertex is outside of. */
+    const __m256d box_lo = _mm256_cvtps_pd(_mm_setr_ps(box[0], box[1], box[2], 0.0f));
+    const __m256d box_hi = _mm256_cvtps_pd(_mm_setr_ps(box[3], box[4], box[5], 0.0f));
     const __m256d lo = _mm256_min_pd(_mm256_min_pd(v0, v1), v2), hi = _mm256_max_pd(_mm256_max_pd(v0, v1), v2);
     unsigned planes = ((unsigned)_mm256_movemask_pd(_mm256_cmp_pd(lo, box_lo, _CMP_LT_OQ)) & 7u) |
                       (((unsigned)_mm256_movemask_pd(_mm256_cmp_pd(hi, box_hi, _CMP_GT_OQ)) & 7u) << 3);
@@ -606,7 +604,7 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
     while (planes && cnt > 0) {
         const int plane = __builtin_ctz(planes), pa = plane % 3, upper = plane >= 3;
         planes &= planes - 1;
-        const double bound = node_box[plane];
+        const double bound = box[plane];
         double (*const in)[4] = poly[cur], (*const o)[4] = poly[1 - cur];
         _mm256_store_pd(in[cnt], _mm256_load_pd(in[0]));
         double dist[10];
@@ -629,9 +627,40 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
         cnt = outc;
         cur = 1 - cur;
     }
+    _mm256_store_pd(poly[cur][cnt], _mm256_load_pd(poly[cur][0]));
+    *cur_out = cur;
+    return cnt;
+}
+
+/* clip_ref in the AVX2 form. */
+__attribute__((target("avx2"))) static void clip_ref_avx2(const as_tri4_t *tris, const kd_ref *old, const float box[6],
+                                                          kd_ref *out)
+{
+    _Alignas(32) double poly[2][10][4];
+    int cur;
+    const int cnt = clip_triangle_avx2(&tris[old->id], box, poly, &cur);
+    __m256d lo = _mm256_set1_pd(INFINITY), hi = _mm256_set1_pd(-INFINITY);
+    for (int i = 0; i < cnt; ++i) {
+        const __m256d p = _mm256_load_pd(poly[cur][i]);
+        lo = _mm256_min_pd(lo, p);
+        hi = _mm256_max_pd(hi, p);
+    }
+    clipped_ref_avx2(old, box, cnt != 0, lo, hi, out);
+    /* The SSE2 code after this must not run with the upper halves in use:
+     * GCC leaves out the vzeroupper here. */
+    _mm256_zeroupper();
+}
+
+/* clip_ref_split in the AVX2 form. */
+__attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t *tris, const kd_ref *old,
+                                                                const float node_box[6], const float box[2][6], int axis,
+                                                                float pos, kd_ref *out[2])
+{
+    _Alignas(32) double poly[2][10][4];
+    int cur;
+    const int cnt = clip_triangle_avx2(&tris[old->id], node_box, poly, &cur);
     /* The polygon's parts on either side of the split plane. */
     double (*const v)[4] = poly[cur];
-    _mm256_store_pd(v[cnt], _mm256_load_pd(v[0]));
     const __m256d inf = _mm256_set1_pd(INFINITY), ninf = _mm256_set1_pd(-INFINITY), at = _mm256_set1_pd((double)pos);
     const __m256d on_axis = _mm256_castsi256_pd(_mm256_loadu_si256((const __m256i *)clip_axis_lane[axis]));
     __m256d lo0 = inf, hi0 = ninf, lo1 = inf, hi1 = ninf;
@@ -661,6 +690,18 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
 }
 #endif
 
+/* A reference clipped to box, in the fastest form this processor has. */
+static void clip_ref_fastest(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
+{
+#if defined(KD_CLIP_AVX2)
+    if (as_cpu_has_avx2()) {
+        clip_ref_avx2(tris, old, box, out);
+        return;
+    }
+#endif
+    clip_ref(tris, old, box, out);
+}
+
 /* Both children's references of a crossing triangle, in the fastest form
  * this processor has. */
 static void clip_ref_split_fastest(const as_tri4_t *tris, const kd_ref *old, const float node_box[6],
@@ -676,6 +717,11 @@ static void clip_ref_split_fastest(const as_tri4_t *tris, const kd_ref *old, con
 }
 
 void kd_clip_reference(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
+{
+    clip_ref_fastest(tris, old, box, out);
+}
+
+void kd_clip_reference_portable(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
 {
     clip_ref(tris, old, box, out);
 }
@@ -791,7 +837,7 @@ static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint3
             if (!(s ? goes_right(r, sp) : goes_left(r, sp))) continue;
             kd_ref *out = &p->out[s][at[s]];
             if (s ? r->lo[sp->axis] < sp->pos : r->hi[sp->axis] > sp->pos) {
-                clip_ref(p->c->tris, r, p->box[s], out);
+                clip_ref_fastest(p->c->tris, r, p->box[s], out);
                 if (p->clipped[s]) p->clipped[s][clipped_at[s]] = at[s];
                 ++clipped_at[s];
                 keep |= clipped_keep(r, out, s);

@@ -129,9 +129,10 @@ void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dl
 void kd_clip_reference(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out);
 void kd_clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], int axis, float pos,
                              kd_ref out[2]);
-/* kd_clip_reference_split runs in the fastest form this processor has (with
- * AVX2 where it has it); the portable form (SSE2, or plain without it) gives
- * the same bits, which test_kd holds them to. */
+/* Both run in the fastest form this processor has (with AVX2 where it has
+ * it); the portable forms (SSE2, or plain without it) give the same bits,
+ * which test_kd holds them to. */
+void kd_clip_reference_portable(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out);
 void kd_clip_reference_split_portable(const as_tri4_t *tris, const kd_ref *old, const float node_box[6], int axis,
                                       float pos, kd_ref out[2]);
 
