@@ -1586,16 +1586,14 @@ __attribute__((target("avx2"))) static inline uint32_t small_pack8(int32_t *out,
 }
 
 /* small_axes_fill eight references at a time, on processors with AVX2:
- * each axis's bounds gathered from the references, the keys made in the
- * lanes, and the candidates packed with a permutation. The same keys and
- * candidates, these in another order. */
+ * their bounds loaded as the rows of a matrix and transposed (gathers cost
+ * more), the keys made in the lanes, and the candidates packed with a
+ * permutation. The same keys and candidates, these in another order. */
 __attribute__((target("avx2"))) static void small_axes_fill_avx2(small_axis axes[3], const kd_ref *refs, uint32_t n,
                                                                  const float box[6])
 {
     pthread_once(&small_pack_once, small_pack_init);
     const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    /* A reference is seven floats: lo[3], hi[3], then its id. */
-    const __m256i stride = _mm256_setr_epi32(0, 7, 14, 21, 28, 35, 42, 49);
     uint32_t n_flat[3] = {0, 0, 0}, n_cand[3] = {0, 0, 0};
     __m256i box_lo[3], box_hi[3];
     for (int a = 0; a < 3; ++a) {
@@ -1605,12 +1603,30 @@ __attribute__((target("avx2"))) static void small_axes_fill_avx2(small_axis axes
     for (uint32_t b = 0; b < n; b += 8) {
         /* Lanes past the last reference read nothing and keep nothing. */
         const __m256i real = _mm256_cmpgt_epi32(_mm256_set1_epi32((int)(n - b)), lane);
-        const float *base = refs[b].lo;
+        /* Eight references' first seven floats as the rows of a matrix
+         * (masked loads: nothing read past a reference), transposed. */
+        const __m256i seven = _mm256_setr_epi32(-1, -1, -1, -1, -1, -1, -1, 0);
+        __m256 row[8];
+        for (int j = 0; j < 8; ++j)
+            row[j] = b + (uint32_t)j < n ? _mm256_maskload_ps(refs[b + (uint32_t)j].lo, seven) : _mm256_setzero_ps();
+        const __m256 t0 = _mm256_unpacklo_ps(row[0], row[1]), t1 = _mm256_unpackhi_ps(row[0], row[1]);
+        const __m256 t2 = _mm256_unpacklo_ps(row[2], row[3]), t3 = _mm256_unpackhi_ps(row[2], row[3]);
+        const __m256 t4 = _mm256_unpacklo_ps(row[4], row[5]), t5 = _mm256_unpackhi_ps(row[4], row[5]);
+        const __m256 t6 = _mm256_unpacklo_ps(row[6], row[7]), t7 = _mm256_unpackhi_ps(row[6], row[7]);
+        const __m256 u0 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(1, 0, 1, 0)), u1 = _mm256_shuffle_ps(t0, t2, _MM_SHUFFLE(3, 2, 3, 2));
+        const __m256 u2 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(1, 0, 1, 0)), u3 = _mm256_shuffle_ps(t1, t3, _MM_SHUFFLE(3, 2, 3, 2));
+        const __m256 u4 = _mm256_shuffle_ps(t4, t6, _MM_SHUFFLE(1, 0, 1, 0)), u5 = _mm256_shuffle_ps(t4, t6, _MM_SHUFFLE(3, 2, 3, 2));
+        const __m256 u6 = _mm256_shuffle_ps(t5, t7, _MM_SHUFFLE(1, 0, 1, 0)), u7 = _mm256_shuffle_ps(t5, t7, _MM_SHUFFLE(3, 2, 3, 2));
+        __m256 col[6];
+        col[0] = _mm256_permute2f128_ps(u0, u4, 0x20); /* lo x */
+        col[1] = _mm256_permute2f128_ps(u1, u5, 0x20); /* lo y */
+        col[2] = _mm256_permute2f128_ps(u2, u6, 0x20); /* lo z */
+        col[3] = _mm256_permute2f128_ps(u3, u7, 0x20); /* hi x */
+        col[4] = _mm256_permute2f128_ps(u0, u4, 0x31); /* hi y */
+        col[5] = _mm256_permute2f128_ps(u1, u5, 0x31); /* hi z */
         for (int a = 0; a < 3; ++a) {
             small_axis *s = &axes[a];
-            const __m256 lo = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), base + a, stride, _mm256_castsi256_ps(real), 4);
-            const __m256 hi =
-                _mm256_mask_i32gather_ps(_mm256_setzero_ps(), base + 3 + a, stride, _mm256_castsi256_ps(real), 4);
+            const __m256 lo = col[a], hi = col[a + 3];
             const __m256i kl = small_keys8(lo), kh = small_keys8(hi);
             const __m256i flat = _mm256_and_si256(_mm256_cmpeq_epi32(kl, kh), real);
             _mm256_storeu_si256((__m256i *)&s->lo[b], _mm256_sub_epi32(kl, flat));
@@ -1781,17 +1797,18 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
              * the threshold rounded up to a float in one compare, the few
              * that pass tested again exactly. The costs past the last
              * candidate are infinite (the pricing writes whole blocks). */
-            __m128 t = _mm_set1_ps(threshold_float(&b));
-            for (uint32_t q = 0; q < sa->n_cand; q += 4) {
-                unsigned lanes = (unsigned)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), t));
-                while (lanes) {
-                    const uint32_t j = q + (uint32_t)__builtin_ctz(lanes);
-                    lanes &= lanes - 1u;
+            /* Which candidates pass, for all of them first: a loop of a
+             * few steps, then one over the few that pass. */
+            const __m128 t = _mm_set1_ps(threshold_float(&b));
+            uint64_t pass[SMALL_CANDIDATES / 64] = {0};
+            for (uint32_t q = 0; q < sa->n_cand; q += 4)
+                pass[q >> 6] |= (uint64_t)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), t)) << (q & 63);
+            for (uint32_t w = 0; w < SMALL_CANDIDATES / 64; ++w)
+                for (uint64_t lanes = pass[w]; lanes; lanes &= lanes - 1u) {
+                    const uint32_t j = 64 * w + (uint32_t)__builtin_ctzll(lanes);
                     if (!((double)sa->cost[j] <= b.threshold)) continue;
                     price_plane_exactly(small_key_float(sa->cand[j]), sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep[axis], &b);
-                    t = _mm_set1_ps(threshold_float(&b));
                 }
-            }
         } else
 #endif
             for (uint32_t j = 0; j < sa->n_cand; ++j) {
