@@ -211,7 +211,46 @@ static void free_state(const kd_run *run, void *state)
 
 static kd_ref *refs_alloc(uint32_t n) { return malloc(sizeof(kd_ref) * (n ? n : 1)); }
 
-static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, void *state, uint32_t depth,
+/* The reference arrays of small nodes (most of the tree's) are blocks of
+ * room for SMALL_REFS, carved from the thread's arena and kept on a free
+ * list: a node takes two and gives one back, and malloc and free cost
+ * more than the rest of such a node's partition. A block never leaves its
+ * thread (only children of PARALLEL_MIN_REFS references or more go to
+ * other threads), and the arena frees them all after the build. */
+#define SMALL_REFS 64
+
+typedef union small_refs_block {
+    union small_refs_block *next;
+    kd_ref refs[SMALL_REFS];
+} small_refs_block;
+
+static kd_ref *refs_take(kd_scratch *sc, uint32_t n)
+{
+    if (n > SMALL_REFS) return refs_alloc(n);
+    small_refs_block *b = sc->small_refs;
+    if (b) {
+        sc->small_refs = b->next;
+        return b->refs;
+    }
+    b = arena_alloc(sc, sizeof *b);
+    return b ? b->refs : NULL;
+}
+
+/* Gives back refs, of n references, taken with refs_take (pooled) or not
+ * (the root's). */
+static void refs_give(kd_scratch *sc, kd_ref *refs, uint32_t n, int pooled)
+{
+    if (!pooled || n > SMALL_REFS) {
+        free(refs);
+        return;
+    }
+    if (!refs) return;
+    small_refs_block *b = (small_refs_block *)(void *)refs;
+    b->next = sc->small_refs;
+    sc->small_refs = b;
+}
+
+static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, int pooled, void *state, uint32_t depth,
                          double weight)
 {
     free_state(run, state);
@@ -236,7 +275,7 @@ static kd_tmp *make_leaf(kd_run *run, kd_scratch *sc, kd_ref *refs, uint32_t n, 
             t->count = n;
         }
     }
-    free(refs);
+    refs_give(sc, refs, n, pooled);
     sc->unreported += weight;
     if (sc->unreported >= REPORT_STEP) {
         report(run, sc->unreported);
@@ -756,6 +795,7 @@ void kd_clip_reference_split_portable(const as_tri4_t *tris, const kd_ref *old, 
 typedef struct kd_task {
     kd_ref *refs;
     uint32_t n;
+    int pooled;        /* refs came from refs_take */
     void *state;
     float box[6];
     uint32_t depth;
@@ -944,7 +984,7 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         if (atomic_load(&run->cancelled) || atomic_load(&run->oom) || n == 0 || t.depth >= c->max_depth ||
             !ops->choose(c, t.state, refs, n, box, t.depth, &sp) ||
             !(sp.pos > box[sp.axis] && sp.pos < box[sp.axis + 3])) {
-            *t.slot = make_leaf(run, sc, refs, n, t.state, t.depth, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.pooled, t.state, t.depth, t.weight);
             return;
         }
         /* Where the references go, counted once: a big node's chunks are
@@ -967,20 +1007,20 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         }
         if ((nl == n && nr == n) || (double)nl + (double)nr > t.share) {
             free(chunk_at);
-            *t.slot = make_leaf(run, sc, refs, n, t.state, t.depth, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.pooled, t.state, t.depth, t.weight);
             return;
         }
-        kd_ref *lr = refs_alloc(nl), *rr = refs_alloc(nr);
+        kd_ref *lr = refs_take(sc, nl), *rr = refs_take(sc, nr);
         /* A node without lists (a small one) has none to hand down: its
          * partition need not note the sides and clipped references. */
         const int hand_down = ops->child_states != NULL && t.state != NULL;
         kd_tmp *node = new_tmp(run, sc);
         if (!lr || !rr || !node || (hand_down && !scratch_clipped_room(sc, n))) {
             free(chunk_at);
-            free(lr);
-            free(rr);
+            refs_give(sc, lr, nl, 1);
+            refs_give(sc, rr, nr, 1);
             atomic_store(&run->oom, 1);
-            *t.slot = make_leaf(run, sc, refs, n, t.state, t.depth, t.weight);
+            *t.slot = make_leaf(run, sc, refs, n, t.pooled, t.state, t.depth, t.weight);
             return;
         }
         float lbox[6], rbox[6];
@@ -1014,14 +1054,14 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             if (!ops->child_states(c, t.state, sc, n, child_refs, child_n, child_state)) atomic_store(&run->oom, 1);
         }
         free_state(run, t.state);
-        free(refs);
+        refs_give(sc, refs, n, t.pooled);
         node->axis = sp.axis;
         node->pos = sp.pos;
         *t.slot = node;
         sc->inner++;
         const double fl = (double)nl / ((double)nl + (double)nr);
-        kd_task lt = {lr, nl, child_state[0], {0}, t.depth + 1, t.share * fl, t.weight * fl, &node->child[0]};
-        kd_task rt = {rr, nr, child_state[1], {0}, t.depth + 1, t.share * (1.0 - fl), t.weight * (1.0 - fl),
+        kd_task lt = {lr, nl, 1, child_state[0], {0}, t.depth + 1, t.share * fl, t.weight * fl, &node->child[0]};
+        kd_task rt = {rr, nr, 1, child_state[1], {0}, t.depth + 1, t.share * (1.0 - fl), t.weight * (1.0 - fl),
                       &node->child[1]};
         memcpy(lt.box, lbox, sizeof lbox);
         memcpy(rt.box, rbox, sizeof rbox);
@@ -1043,7 +1083,7 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     if (!sc) {
         atomic_store(&run->oom, 1);
         free_state(run, t.state);
-        free(t.refs);
+        if (!t.pooled) free(t.refs); /* a pooled one is in an arena, freed after the build */
         return;
     }
     build_subtree(pool, run, sc, t);
@@ -1346,7 +1386,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     void *root_state = ops->root_state ? ops->root_state(&ctx, refs, n) : NULL;
     if (ops->root_state && !root_state) atomic_store(&run.oom, 1);
     kd_tmp *root = NULL;
-    kd_task first = {refs, n, root_state, {0}, 0, (double)args->split_budget * (double)n, 1.0, &root};
+    kd_task first = {refs, n, 0, root_state, {0}, 0, (double)args->split_budget * (double)n, 1.0, &root};
     memcpy(first.box, box, sizeof box);
     if (threads < 2 || n < 2 * PARALLEL_MIN_REFS || !as_task_pool_run(threads, sizeof first, &first, build_task, &run))
         build_task(NULL, &first, &run);

@@ -65,6 +65,7 @@ typedef struct kd_scratch {
     size_t buf_size;
     struct kd_scratch *next_free;
     struct kd_arena_chunk *arena; /* the driver's: the tree's nodes and leaf lists */
+    void *small_refs;             /* the driver's: free arrays for small nodes' references */
     /* The driver's count of the nodes this thread made, summed after the
      * build to size the tree's sections without another walk. */
     uint64_t inner, leaves, empty, refs;
