@@ -855,28 +855,49 @@ typedef struct kd_partition {
 
 /* References [begin, end) into the children, from at[] and clipped_at[]
  * on; the counts are advanced. */
-static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint32_t at[2], uint32_t clipped_at[2])
+static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint32_t at_io[2], uint32_t clipped_at_io[2])
 {
+    /* The split and the counts in locals: the stores into the children's
+     * arrays could alias them, and the compiler would reload them. */
     const kd_split *sp = p->sp;
+    const int axis = sp->axis, planar_left = sp->planar_left;
+    const float pos = sp->pos;
+    const kd_ref *const refs = p->refs;
+    kd_ref *const o0 = p->out[0], *const o1 = p->out[1];
+    uint16_t *const side = p->side;
+    uint32_t at[2] = {at_io[0], at_io[1]}, clipped_at[2] = {clipped_at_io[0], clipped_at_io[1]};
     for (uint32_t i = begin; i < end; ++i) {
-        const kd_ref *r = &p->refs[i];
+        const kd_ref *r = &refs[i];
+        const float lo = r->lo[axis], hi = r->hi[axis];
         unsigned keep = 0;
-        if (r->lo[sp->axis] < sp->pos && r->hi[sp->axis] > sp->pos) {
-            kd_ref *out[2] = {&p->out[0][at[0]], &p->out[1][at[1]]};
-            clip_ref_split_fastest(p->c->tris, r, p->node_box, p->box, sp->axis, sp->pos, out);
+        if (lo < pos && hi > pos) {
+            kd_ref *out[2] = {&o0[at[0]], &o1[at[1]]};
+            clip_ref_split_fastest(p->c->tris, r, p->node_box, p->box, axis, pos, out);
             for (int s = 0; s < 2; ++s) {
                 if (p->clipped[s]) p->clipped[s][clipped_at[s]] = at[s];
                 ++clipped_at[s];
                 keep |= clipped_keep(r, out[s], s);
                 ++at[s];
             }
-            if (p->side) p->side[r->id] = (uint16_t)keep;
+            if (side) side[r->id] = (uint16_t)keep;
             continue;
         }
+        /* goes_left and goes_right. */
+        const int in_plane = lo == hi && lo == pos;
+        const int l = in_plane ? planar_left : lo <= pos, rt = in_plane ? !planar_left : hi >= pos;
+        if (!((l && hi > pos) || (rt && lo < pos))) {
+            /* Not clipped: copied where it goes. */
+            if (l) o0[at[0]++] = *r;
+            if (rt) o1[at[1]++] = *r;
+            if (side) side[r->id] = (uint16_t)((l ? KD_KEEP_SIDE(0) : 0u) | (rt ? KD_KEEP_SIDE(1) : 0u));
+            continue;
+        }
+        /* Touching the plane from one side (a bound in it): that side's
+         * copy is clipped to a flat box, the other side's is not. */
         for (int s = 0; s < 2; ++s) {
-            if (!(s ? goes_right(r, sp) : goes_left(r, sp))) continue;
-            kd_ref *out = &p->out[s][at[s]];
-            if (s ? r->lo[sp->axis] < sp->pos : r->hi[sp->axis] > sp->pos) {
+            if (!(s ? rt : l)) continue;
+            kd_ref *out = s ? &o1[at[1]] : &o0[at[0]];
+            if (s ? lo < pos : hi > pos) {
                 clip_ref_fastest(p->c->tris, r, p->box[s], out);
                 if (p->clipped[s]) p->clipped[s][clipped_at[s]] = at[s];
                 ++clipped_at[s];
@@ -887,8 +908,12 @@ static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint3
             }
             ++at[s];
         }
-        if (p->side) p->side[r->id] = (uint16_t)keep;
+        if (side) side[r->id] = (uint16_t)keep;
     }
+    at_io[0] = at[0];
+    at_io[1] = at[1];
+    clipped_at_io[0] = clipped_at[0];
+    clipped_at_io[1] = clipped_at[1];
 }
 
 /* A big node's partition on the build's threads: contiguous chunks, each
