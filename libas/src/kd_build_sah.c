@@ -1689,14 +1689,42 @@ __attribute__((target("avx2"))) static inline __m256 price_small_eight(small_axi
     return cost;
 }
 
+/* The counts of one block of eight candidates against every reference
+ * (the flat ones' third count only where the axis has some). */
+__attribute__((target("avx2"))) static inline void count_small_eight(const small_axis *s, uint32_t n, __m256i c,
+                                                                     __m256i *nl0, __m256i *nr0, __m256i *p_eq)
+{
+    const __m256i d = _mm256_sub_epi32(c, _mm256_set1_epi32(1));
+    __m256i gt = _mm256_setzero_si256(), ge = gt, eq = gt;
+    if (s->n_flat) {
+        for (uint32_t k = 0; k < n; ++k) {
+            const __m256i l = _mm256_cmpgt_epi32(_mm256_set1_epi32(s->lo[k]), c);
+            const __m256i h = _mm256_cmpgt_epi32(_mm256_set1_epi32(s->hi[k]), d);
+            gt = _mm256_sub_epi32(gt, l);
+            ge = _mm256_sub_epi32(ge, h);
+            eq = _mm256_sub_epi32(eq, _mm256_andnot_si256(h, l));
+        }
+    } else {
+        for (uint32_t k = 0; k < n; ++k) {
+            gt = _mm256_sub_epi32(gt, _mm256_cmpgt_epi32(_mm256_set1_epi32(s->lo[k]), c));
+            ge = _mm256_sub_epi32(ge, _mm256_cmpgt_epi32(_mm256_set1_epi32(s->hi[k]), d));
+        }
+    }
+    *nl0 = _mm256_sub_epi32(_mm256_set1_epi32((int)n), gt);
+    *nr0 = ge;
+    *p_eq = eq;
+}
+
 /* The counts of sixteen candidates against every reference, each key
  * broadcast once for both blocks; without flat references nothing lies in
- * a plane, and the loop takes two compares a reference. */
+ * a plane, and the loop takes two compares a reference. A last block of
+ * eight or fewer goes alone. */
 __attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s, uint32_t n, const sweep_prices *sp)
 {
     const __m256i one = _mm256_set1_epi32(1), count = _mm256_set1_epi32((int)n), zero = _mm256_setzero_si256();
     __m256 low = _mm256_set1_ps(INFINITY);
-    for (uint32_t j = 0; j < s->n_cand; j += 16) {
+    uint32_t j = 0;
+    for (; j + 8 < s->n_cand; j += 16) {
         const __m256i c_a = _mm256_loadu_si256((const __m256i *)&s->cand[j]);
         const __m256i c_b = _mm256_loadu_si256((const __m256i *)&s->cand[j + 8]);
         const __m256i d_a = _mm256_sub_epi32(c_a, one), d_b = _mm256_sub_epi32(c_b, one);
@@ -1723,8 +1751,13 @@ __attribute__((target("avx2"))) static float price_small_axis_avx2(small_axis *s
             }
         }
         low = _mm256_min_ps(low, price_small_eight(s, j, c_a, _mm256_sub_epi32(count, gt_a), ge_a, eq_a, sp));
-        if (j + 8 < s->n_cand)
-            low = _mm256_min_ps(low, price_small_eight(s, j + 8, c_b, _mm256_sub_epi32(count, gt_b), ge_b, eq_b, sp));
+        low = _mm256_min_ps(low, price_small_eight(s, j + 8, c_b, _mm256_sub_epi32(count, gt_b), ge_b, eq_b, sp));
+    }
+    if (j < s->n_cand) {
+        const __m256i c = _mm256_loadu_si256((const __m256i *)&s->cand[j]);
+        __m256i nl0, nr0, p_eq;
+        count_small_eight(s, n, c, &nl0, &nr0, &p_eq);
+        low = _mm256_min_ps(low, price_small_eight(s, j, c, nl0, nr0, p_eq, sp));
     }
     const __m128 four = _mm_min_ps(_mm256_castps256_ps128(low), _mm256_extractf128_ps(low, 1));
     return lowest4(four);
