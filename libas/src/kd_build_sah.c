@@ -927,8 +927,8 @@ typedef struct sweep_chunk {
     /* Index 0 is the last group of the chunk before (or zeros). Per group:
      * its key and the events up to and including it (high half), and the
      * END (low half) and PLANAR events among those: two stores per event. */
-    uint64_t key_events[SWEEP_CHUNK + 4], counts[SWEEP_CHUNK + 4];
-    float cost[SWEEP_CHUNK + 4]; /* three spare slots: the vector loops price groups four at a time */
+    uint64_t key_events[SWEEP_CHUNK + 8], counts[SWEEP_CHUNK + 8];
+    float cost[SWEEP_CHUNK + 8]; /* seven spare slots: the vector loops price groups eight at a time */
 } sweep_chunk;
 
 /* What an event adds to the END (low half) and PLANAR (high half) counts,
@@ -1003,6 +1003,34 @@ static inline float lowest4(__m128 v)
 }
 #endif
 
+#if defined(KD_AVX2)
+/* price_planes4's steps for eight planes (without fused multiply-adds: the
+ * function may use AVX2, not FMA), so the costs are the same floats. */
+__attribute__((target("avx2"))) static inline __m256 price_planes8(__m256 pos, __m256i nl0, __m256i nr0, __m256i p_eq,
+                                                                   const sweep_prices *sp)
+{
+    const __m256i zero = _mm256_setzero_si256();
+    const __m256 bonus = _mm256_set1_ps(0.8f), one = _mm256_set1_ps(1.0f);
+    const __m256 face = _mm256_set1_ps(sp->face), rim = _mm256_set1_ps(sp->rim), ct = _mm256_set1_ps(sp->ct),
+                 ci = _mm256_set1_ps(sp->ci);
+    const __m256i nl = _mm256_add_epi32(nl0, p_eq), nr = _mm256_add_epi32(nr0, p_eq);
+    const __m256 al = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(pos, _mm256_set1_ps(sp->lo))));
+    const __m256 ar = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(_mm256_set1_ps(sp->hi), pos)));
+    const __m256i empty_l = _mm256_or_si256(_mm256_cmpeq_epi32(nl, zero), _mm256_cmpeq_epi32(nr0, zero));
+    const __m256i empty_r = _mm256_or_si256(_mm256_cmpeq_epi32(nl0, zero), _mm256_cmpeq_epi32(nr, zero));
+    const __m256 lambda_l = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_l));
+    const __m256 lambda_r = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_r));
+    const __m256 cost_l = _mm256_mul_ps(
+        lambda_l, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl)),
+                                                                     _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr0))))));
+    const __m256 cost_r = _mm256_mul_ps(
+        lambda_r, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl0)),
+                                                                     _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr))))));
+    return _mm256_min_ps(cost_l, cost_r);
+}
+
+#endif
+
 /* Pass 2 of sweep_range: the single-precision cost of groups 1 .. k-1 of g
  * into g->cost (infinite for planes on the node's faces), and the lowest. */
 static float price_groups(sweep_chunk *g, size_t k, const sweep_prices *sp)
@@ -1068,6 +1096,61 @@ static float price_groups(sweep_chunk *g, size_t k, const sweep_prices *sp)
     return low;
 #endif
 }
+
+#if defined(KD_AVX2)
+/* price_groups eight groups at a time, with AVX2: the same steps in the
+ * lanes (price_planes8), so the same costs. The halves of the 64-bit words
+ * are taken within each 128-bit lane, which orders the groups 0, 1, 4, 5,
+ * 2, 3, 6, 7; the costs are put back in order before they are stored. */
+__attribute__((target("avx2"))) static float price_groups_avx2(sweep_chunk *g, size_t k, const sweep_prices *sp)
+{
+    for (size_t j = 0; j < 7; ++j) {
+        g->key_events[k + j] = ((uint64_t)sp->key_lo << 32) | (uint32_t)g->key_events[k - 1];
+        g->counts[k + j] = g->counts[k - 1];
+    }
+    const __m256i sign = _mm256_set1_epi32((int)0x80000000u), ones = _mm256_set1_epi32(-1);
+    const __m256i np_total = _mm256_set1_epi32((int)sp->np_total), p_total = _mm256_set1_epi32((int)sp->p_total);
+    const __m256i key_lo = _mm256_xor_si256(_mm256_set1_epi32((int)sp->key_lo), sign);
+    const __m256i key_hi = _mm256_xor_si256(_mm256_set1_epi32((int)sp->key_hi), sign);
+    const __m256i in_order = _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7);
+    const __m256 inf = _mm256_set1_ps(INFINITY);
+    __m256 low = inf;
+#define LOW_HALVES8(a, b) _mm256_castps_si256(_mm256_shuffle_ps(_mm256_castsi256_ps(a), _mm256_castsi256_ps(b), _MM_SHUFFLE(2, 0, 2, 0)))
+#define HIGH_HALVES8(a, b) _mm256_castps_si256(_mm256_shuffle_ps(_mm256_castsi256_ps(a), _mm256_castsi256_ps(b), _MM_SHUFFLE(3, 1, 3, 1)))
+    for (size_t q = 1; q < k; q += 8) {
+        const __m256i ke0 = _mm256_loadu_si256((const __m256i *)&g->key_events[q]);
+        const __m256i ke1 = _mm256_loadu_si256((const __m256i *)&g->key_events[q + 4]);
+        const __m256i kp0 = _mm256_loadu_si256((const __m256i *)&g->key_events[q - 1]);
+        const __m256i kp1 = _mm256_loadu_si256((const __m256i *)&g->key_events[q + 3]);
+        const __m256i c0 = _mm256_loadu_si256((const __m256i *)&g->counts[q]);
+        const __m256i c1 = _mm256_loadu_si256((const __m256i *)&g->counts[q + 4]);
+        const __m256i cp0 = _mm256_loadu_si256((const __m256i *)&g->counts[q - 1]);
+        const __m256i cp1 = _mm256_loadu_si256((const __m256i *)&g->counts[q + 3]);
+        const __m256i key = HIGH_HALVES8(ke0, ke1), events = LOW_HALVES8(ke0, ke1), events_before = LOW_HALVES8(kp0, kp1);
+        const __m256i ends = LOW_HALVES8(c0, c1), planars = HIGH_HALVES8(c0, c1);
+        const __m256i ends_before = LOW_HALVES8(cp0, cp1), planars_before = HIGH_HALVES8(cp0, cp1);
+        /* group_sides, lane by lane. */
+        const __m256i p = _mm256_sub_epi32(planars, planars_before), e_eq = _mm256_sub_epi32(ends, ends_before);
+        const __m256i s_eq = _mm256_sub_epi32(_mm256_sub_epi32(_mm256_sub_epi32(events, events_before), e_eq), p);
+        const __m256i nl0 = _mm256_add_epi32(_mm256_sub_epi32(events_before, ends_before), s_eq);
+        const __m256i nr0 =
+            _mm256_add_epi32(_mm256_add_epi32(_mm256_sub_epi32(np_total, ends), _mm256_sub_epi32(p_total, planars)), e_eq);
+        /* key_float. */
+        const __m256i negative = _mm256_srai_epi32(key, 31);
+        const __m256 pos = _mm256_castsi256_ps(_mm256_or_si256(_mm256_and_si256(negative, _mm256_andnot_si256(sign, key)),
+                                                               _mm256_andnot_si256(negative, _mm256_xor_si256(key, ones))));
+        const __m256i signed_key = _mm256_xor_si256(key, sign);
+        const __m256 inside = _mm256_castsi256_ps(
+            _mm256_and_si256(_mm256_cmpgt_epi32(signed_key, key_lo), _mm256_cmpgt_epi32(key_hi, signed_key)));
+        const __m256 cost = _mm256_permutevar8x32_ps(_mm256_blendv_ps(inf, price_planes8(pos, nl0, nr0, p, sp), inside), in_order);
+        _mm256_storeu_ps(&g->cost[q], cost);
+        low = _mm256_min_ps(low, cost);
+    }
+#undef LOW_HALVES8
+#undef HIGH_HALVES8
+    return lowest4(_mm_min_ps(_mm256_castps256_ps128(low), _mm256_extractf128_ps(low, 1)));
+}
+#endif
 
 /* The lowest cost found so far and the plane of it. */
 typedef struct sweep_best {
@@ -1264,7 +1347,12 @@ static void sweep_range(const choose_job *cj, int axis, size_t begin, size_t end
         const size_t k = sweep_groups(ev, c, c_end, 1, &counts, &g);
 #endif
         /* Only groups near the chunk's lowest can hold its best plane. */
-        const double chunk_threshold = (double)price_groups(&g, k, &sp) * (1.0 + SWEEP_MARGIN);
+#if defined(KD_AVX2)
+        const float chunk_low = avx2 ? price_groups_avx2(&g, k, &sp) : price_groups(&g, k, &sp);
+#else
+        const float chunk_low = price_groups(&g, k, &sp);
+#endif
+        const double chunk_threshold = (double)chunk_low * (1.0 + SWEEP_MARGIN);
         if (chunk_threshold < best.threshold) best.threshold = chunk_threshold;
 #if defined(__SSE2__)
         if (filter) {
@@ -1644,31 +1732,6 @@ __attribute__((target("avx2"))) static void small_axes_fill_avx2(small_axis axes
         axes[a].n_flat = n_flat[a];
         axes[a].n_cand = n_cand[a];
     }
-}
-
-/* price_planes4's steps for eight planes (without fused multiply-adds: the
- * function may use AVX2, not FMA), so the costs are the same floats. */
-__attribute__((target("avx2"))) static inline __m256 price_planes8(__m256 pos, __m256i nl0, __m256i nr0, __m256i p_eq,
-                                                                   const sweep_prices *sp)
-{
-    const __m256i zero = _mm256_setzero_si256();
-    const __m256 bonus = _mm256_set1_ps(0.8f), one = _mm256_set1_ps(1.0f);
-    const __m256 face = _mm256_set1_ps(sp->face), rim = _mm256_set1_ps(sp->rim), ct = _mm256_set1_ps(sp->ct),
-                 ci = _mm256_set1_ps(sp->ci);
-    const __m256i nl = _mm256_add_epi32(nl0, p_eq), nr = _mm256_add_epi32(nr0, p_eq);
-    const __m256 al = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(pos, _mm256_set1_ps(sp->lo))));
-    const __m256 ar = _mm256_add_ps(face, _mm256_mul_ps(rim, _mm256_sub_ps(_mm256_set1_ps(sp->hi), pos)));
-    const __m256i empty_l = _mm256_or_si256(_mm256_cmpeq_epi32(nl, zero), _mm256_cmpeq_epi32(nr0, zero));
-    const __m256i empty_r = _mm256_or_si256(_mm256_cmpeq_epi32(nl0, zero), _mm256_cmpeq_epi32(nr, zero));
-    const __m256 lambda_l = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_l));
-    const __m256 lambda_r = _mm256_blendv_ps(one, bonus, _mm256_castsi256_ps(empty_r));
-    const __m256 cost_l = _mm256_mul_ps(
-        lambda_l, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl)),
-                                                                     _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr0))))));
-    const __m256 cost_r = _mm256_mul_ps(
-        lambda_r, _mm256_add_ps(ct, _mm256_mul_ps(ci, _mm256_add_ps(_mm256_mul_ps(al, _mm256_cvtepi32_ps(nl0)),
-                                                                     _mm256_mul_ps(ar, _mm256_cvtepi32_ps(nr))))));
-    return _mm256_min_ps(cost_l, cost_r);
 }
 
 /* The prices of eight candidates with their counts, into s at j. */
