@@ -1896,10 +1896,10 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
             /* Which candidates pass, for all of them first: a loop of a
              * few steps, then one over the few that pass. */
             const __m128 t = _mm_set1_ps(threshold_float(&b));
-            uint64_t pass[SMALL_CANDIDATES / 64] = {0};
+            uint64_t pass[(SMALL_CANDIDATES + 63) / 64] = {0};
             for (uint32_t q = 0; q < sa->n_cand; q += 4)
                 pass[q >> 6] |= (uint64_t)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), t)) << (q & 63);
-            for (uint32_t w = 0; w < SMALL_CANDIDATES / 64; ++w)
+            for (uint32_t w = 0; w < (SMALL_CANDIDATES + 63) / 64; ++w)
                 for (uint64_t lanes = pass[w]; lanes; lanes &= lanes - 1u) {
                     const uint32_t j = 64 * w + (uint32_t)__builtin_ctzll(lanes);
                     if (!((double)sa->cost[j] <= b.threshold)) continue;
