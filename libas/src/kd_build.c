@@ -685,9 +685,6 @@ __attribute__((target("avx2"))) static void clip_ref_avx2(const as_tri4_t *tris,
         hi = _mm256_max_pd(hi, p);
     }
     clipped_ref_avx2(old, box, cnt != 0, lo, hi, out);
-    /* The SSE2 code after this must not run with the upper halves in use:
-     * GCC leaves out the vzeroupper here. */
-    _mm256_zeroupper();
 }
 
 /* clip_ref_split in the AVX2 form. */
@@ -723,9 +720,6 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
     }
     clipped_ref_avx2(old, box[0], below, lo0, hi0, out[0]);
     clipped_ref_avx2(old, box[1], above, lo1, hi1, out[1]);
-    /* The SSE2 code after this must not run with the upper halves in use:
-     * GCC leaves out the vzeroupper here. */
-    _mm256_zeroupper();
 }
 #endif
 
