@@ -453,18 +453,17 @@ static inline __m128 next_up4(__m128 f)
 
 static inline __m128 select4(__m128 m, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(m, a), _mm_andnot_ps(m, b)); }
 
-void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
+/* The clipped reference from old's box within `box`, narrowed to the
+ * clipped triangle's bounds rounded out to floats (fl, fh; `clipped` 0 when
+ * clipping left nothing): the steps every vector form shares. */
+static inline void clipped_ref_finish(const kd_ref *old, const float box[6], int clipped, __m128 fl, __m128 fh,
+                                      kd_ref *out)
 {
     __m128 lo = _mm_max_ps(load3_zero(old->lo), load3_zero(box));
     /* box[3..5] from the four floats ending there: box has six. */
     const __m128 box_hi = _mm_loadu_ps(box + 2);
     __m128 hi = _mm_min_ps(load3_zero(old->hi), load3_zero_lanes(_mm_shuffle_ps(box_hi, box_hi, _MM_SHUFFLE(3, 3, 2, 1))));
-    if (dlo) {
-        __m128 above, below;
-        const __m128 f = floats_of(dlo, &above, &below);
-        const __m128 fl = select4(above, next_down4(f), f);
-        const __m128 g = floats_of(dhi, &above, &below);
-        const __m128 fh = select4(below, next_up4(g), g);
+    if (clipped) {
         lo = select4(_mm_and_ps(_mm_cmpgt_ps(fl, lo), _mm_cmple_ps(fl, hi)), fl, lo);
         hi = select4(_mm_and_ps(_mm_cmplt_ps(fh, hi), _mm_cmpge_ps(fh, lo)), fh, hi);
     }
@@ -474,6 +473,19 @@ void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dl
     memcpy(out->lo, l, sizeof out->lo);
     memcpy(out->hi, h, sizeof out->hi);
     out->id = old->id;
+}
+
+void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
+{
+    __m128 fl = _mm_setzero_ps(), fh = _mm_setzero_ps();
+    if (dlo) {
+        __m128 above, below;
+        const __m128 f = floats_of(dlo, &above, &below);
+        fl = select4(above, next_down4(f), f);
+        const __m128 g = floats_of(dhi, &above, &below);
+        fh = select4(below, next_up4(g), g);
+    }
+    clipped_ref_finish(old, box, dlo != NULL, fl, fh, out);
 }
 #endif
 
@@ -584,14 +596,12 @@ static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float
 #define KD_CLIP_AVX2 1
 #include <immintrin.h>
 
-/* kd_clipped_ref_sse2's steps, the bounds in a vector of four doubles:
- * the same floats. */
+/* kd_clipped_ref_sse2 with the bounds in a vector of four doubles: the
+ * same floats. */
 __attribute__((target("avx2"))) static inline void clipped_ref_avx2(const kd_ref *old, const float box[6], int clipped,
                                                                     __m256d dlo, __m256d dhi, kd_ref *out)
 {
-    __m128 lo = _mm_max_ps(load3_zero(old->lo), load3_zero(box));
-    const __m128 box_hi = _mm_loadu_ps(box + 2);
-    __m128 hi = _mm_min_ps(load3_zero(old->hi), load3_zero_lanes(_mm_shuffle_ps(box_hi, box_hi, _MM_SHUFFLE(3, 3, 2, 1))));
+    __m128 fl = _mm_setzero_ps(), fh = _mm_setzero_ps();
     if (clipped) {
         /* The 64-bit compares' low halves make the 32-bit lanes. */
         const __m256i halves = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
@@ -600,17 +610,10 @@ __attribute__((target("avx2"))) static inline void clipped_ref_avx2(const kd_ref
             _mm256_castpd_ps(_mm256_cmp_pd(_mm256_cvtps_pd(f), dlo, _CMP_GT_OQ)), halves));
         const __m128 below = _mm256_castps256_ps128(_mm256_permutevar8x32_ps(
             _mm256_castpd_ps(_mm256_cmp_pd(_mm256_cvtps_pd(g), dhi, _CMP_LT_OQ)), halves));
-        const __m128 fl = select4(above, next_down4(f), f);
-        const __m128 fh = select4(below, next_up4(g), g);
-        lo = select4(_mm_and_ps(_mm_cmpgt_ps(fl, lo), _mm_cmple_ps(fl, hi)), fl, lo);
-        hi = select4(_mm_and_ps(_mm_cmplt_ps(fh, hi), _mm_cmpge_ps(fh, lo)), fh, hi);
+        fl = select4(above, next_down4(f), f);
+        fh = select4(below, next_up4(g), g);
     }
-    float l[4], h[4];
-    _mm_storeu_ps(l, lo);
-    _mm_storeu_ps(h, hi);
-    memcpy(out->lo, l, sizeof out->lo);
-    memcpy(out->hi, h, sizeof out->hi);
-    out->id = old->id;
+    clipped_ref_finish(old, box, clipped, fl, fh, out);
 }
 
 /* A mask of the lane of one axis, per axis. */

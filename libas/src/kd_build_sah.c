@@ -256,6 +256,13 @@ static unsigned keeps_event(unsigned keep, int s, int a, uint64_t ev)
     return (keep >> (s * 6 + a * 2 + (event_kind(ev) == EV_END))) & 1u;
 }
 
+/* Both children's keep bits of ev on axis a, child 0's in bit 0 and child
+ * 1's in bit 6: one shift of its reference's side[] entry. */
+static inline unsigned event_keep_bits(const uint16_t *side, int a, uint64_t ev)
+{
+    return (unsigned)side[event_index(ev)] >> (a * 2 + (event_kind(ev) == EV_END));
+}
+
 typedef struct root_job {
     const kd_ref *refs;
     uint32_t n;
@@ -539,11 +546,10 @@ static size_t kept_runs(kept_run *r, size_t k, uint64_t below)
     uint64_t *const o0 = r->out[0], *const o1 = r->out[1];
     size_t n0 = r->n[0], n1 = r->n[1];
     const unsigned kept0 = r->kept[0], kept1 = r->kept[1];
-    const int a2 = r->axis * 2;
     for (; k + 4 <= r->m && src[k + 3] < below; k += 4)
         for (int u = 0; u < 4; ++u) {
             const uint64_t ev = src[k + u];
-            const unsigned f = (unsigned)r->keep[event_index(ev)] >> (a2 + (event_kind(ev) == EV_END));
+            const unsigned f = event_keep_bits(r->keep, r->axis, ev);
             o0[n0] = ev;
             o1[n1] = ev;
             n0 += f & kept0;
@@ -651,8 +657,7 @@ static void child_axis_events(void *user, int a)
         n1 = run.n[1];
         if (k == m) break;
         const uint64_t ev = src[k];
-        /* Both children's bits for this axis and bound: one shift. */
-        const unsigned f = (unsigned)keep[event_index(ev)] >> (a * 2 + (event_kind(ev) == EV_END));
+        const unsigned f = event_keep_bits(keep, a, ev);
         while (y0 < ev) {
             o0[n0++] = y0;
             y0 = *++f0;
