@@ -6,6 +6,7 @@
  * keep for the next one can be freed. */
 #include "reference.h"
 #include "test_util.h"
+#include "structure.h"
 
 #include <math.h>
 
@@ -217,11 +218,69 @@ static void released_structures_leave_memory_that_can_be_freed(void)
     as_mesh_release(bunny);
 }
 
+/* Temporaries of 64 KB and more go back to a pool by power-of-two class
+ * (their size and a 16-byte header rounded up) and come out again for a
+ * request of their class or up to two classes below; smaller ones are
+ * malloc's and are not kept. The pool keeps at most 256 MB of blocks and
+ * frees what comes back beyond that; as_release_cached_memory empties it
+ * and counts the classes' bytes. */
+static void build_temporaries_are_kept_by_size_class(void)
+{
+    as_release_cached_memory();
+    CHECK_EQ_U64(as_release_cached_memory(), 0);
+
+    unsigned char *small = as_temp_take(60 << 10, "a test");
+    CHECK(small != NULL);
+    if (small) memset(small, 1, 60 << 10);
+    as_temp_give(small);
+    CHECK_EQ_U64(as_release_cached_memory(), 0);
+
+    unsigned char *a = as_temp_take(100 << 10, "a test"); /* class 128 KB */
+    CHECK(a != NULL);
+    if (!a) return;
+    memset(a, 2, 100 << 10);
+    as_temp_give(a);
+    unsigned char *again = as_temp_take(128 << 10, "a test"); /* 128 KB + header: class 256 KB, not a's */
+    unsigned char *b = as_temp_take(40 << 10, "a test");    /* under 64 KB: not from the pool */
+    unsigned char *c = as_temp_take(70 << 10, "a test");    /* class 128 KB: a */
+    CHECK(again != a && b != a && c == a);
+    as_temp_give(again);
+    as_temp_give(b);
+    as_temp_give(c);
+    CHECK_EQ_U64(as_release_cached_memory(), (128 << 10) + (256 << 10));
+
+    unsigned char *mb = as_temp_take(1000 << 10, "a test"); /* class 1 MB */
+    CHECK(mb != NULL);
+    as_temp_give(mb);
+    unsigned char *too_small = as_temp_take(100 << 10, "a test"); /* class 128 KB: three below, fresh */
+    unsigned char *reach = as_temp_take(300 << 10, "a test");     /* class 512 KB: one below, mb */
+    CHECK(too_small != mb && reach == mb);
+    as_temp_give(too_small);
+    as_temp_give(reach); /* back to its own class */
+    unsigned char *whole = as_temp_take(1000 << 10, "a test");
+    CHECK(whole == mb);
+    as_temp_give(whole);
+    CHECK_EQ_U64(as_release_cached_memory(), (128 << 10) + (1 << 20));
+
+    /* Three blocks of 128 MB: the third comes back beyond the 256 MB kept.
+     * Untouched, they cost address space only. */
+    void *big[3];
+    for (int i = 0; i < 3; ++i) {
+        big[i] = as_temp_take((size_t)100 << 20, "a test");
+        CHECK(big[i] != NULL);
+    }
+    for (int i = 0; i < 3; ++i) as_temp_give(big[i]);
+    CHECK_EQ_U64(as_release_cached_memory(), (size_t)256 << 20);
+    as_temp_give(NULL);
+    CHECK_EQ_U64(as_release_cached_memory(), 0);
+}
+
 int main(void)
 {
     RUN_TEST(built_structures_stay_within_the_bound);
     RUN_TEST(estimates_grow_with_the_budget_and_the_mesh);
     RUN_TEST(refused_arguments_are_refused);
     RUN_TEST(released_structures_leave_memory_that_can_be_freed);
+    RUN_TEST(build_temporaries_are_kept_by_size_class);
     TEST_EXIT();
 }

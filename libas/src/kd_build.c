@@ -209,7 +209,9 @@ static void free_state(const kd_run *run, void *state)
     if (state && run->c->ops->free_state) run->c->ops->free_state(state);
 }
 
-static kd_ref *refs_alloc(uint32_t n) { return malloc(sizeof(kd_ref) * (n ? n : 1)); }
+/* Reference arrays of more than SMALL_REFS are temporaries (as_temp_take). */
+static size_t refs_bytes(uint32_t n) { return sizeof(kd_ref) * (n ? n : 1); }
+static kd_ref *refs_alloc(uint32_t n) { return as_temp_take(refs_bytes(n), "KD references"); }
 
 /* The reference arrays of small nodes (most of the tree's) are blocks of
  * room for SMALL_REFS, carved from the thread's arena and kept on a free
@@ -241,7 +243,7 @@ static kd_ref *refs_take(kd_scratch *sc, uint32_t n)
 static void refs_give(kd_scratch *sc, kd_ref *refs, uint32_t n, int pooled)
 {
     if (!pooled || n > SMALL_REFS) {
-        free(refs);
+        as_temp_give(refs);
         return;
     }
     if (!refs) return;
@@ -1105,7 +1107,7 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     if (!sc) {
         atomic_store(&run->oom, 1);
         free_state(run, t.state);
-        if (!t.pooled) free(t.refs); /* a pooled one is in an arena, freed after the build */
+        if (!t.pooled || t.n > SMALL_REFS) as_temp_give(t.refs); /* else in an arena, freed after the build */
         return;
     }
     build_subtree(pool, run, sc, t);
@@ -1379,7 +1381,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     init.refs = refs_alloc(n);
     as_tri4_t *tris = as_spatial_tris(mesh, threads);
     if (!init.refs || !tris) {
-        free(init.refs);
+        as_temp_give(init.refs);
         free(tris);
         return as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory building a KD tree");
     }

@@ -201,9 +201,11 @@ static void for_each_axis(unsigned threads, void (*fn)(void *user, int axis), vo
  * one event past the last. */
 #define EVENTS_SPARE 4
 
+/* Lists are temporaries (as_temp_take): a build makes and frees them level
+ * after level. */
 static sah_events *events_alloc(size_t per_axis)
 {
-    sah_events *e = malloc(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + EVENTS_SPARE));
+    sah_events *e = as_temp_take(sizeof *e + sizeof(uint64_t) * 3 * (per_axis + EVENTS_SPARE), "KD event lists");
     if (!e) return NULL;
     uint64_t *base = (uint64_t *)(e + 1);
     for (int a = 0; a < 3; ++a) {
@@ -212,6 +214,8 @@ static sah_events *events_alloc(size_t per_axis)
     }
     return e;
 }
+
+static void events_free(void *state) { as_temp_give(state); }
 
 /* Appends the events of reference `r` (index `index`) on `axis`. */
 static size_t put_events(uint64_t *out, const kd_ref *r, int axis, uint32_t index)
@@ -294,7 +298,8 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
         uint32_t first, end;
         root_half_range(r->n, h, &first, &end);
         const size_t at = root_half_at(r->n, h);
-        uint64_t *out = r->e->list[a] + at, *tmp = malloc(sizeof(uint64_t) * 2 * (size_t)(end > first ? end - first : 1));
+        uint64_t *out = r->e->list[a] + at,
+                 *tmp = as_temp_take(sizeof(uint64_t) * 2 * (size_t)(end > first ? end - first : 1), "KD root events");
         if (!tmp) {
             atomic_store(&r->failed, 1);
             return;
@@ -302,7 +307,7 @@ static void root_sort_half(void *user, unsigned i, unsigned count)
         size_t m = 0;
         for (uint32_t k = first; k < end; ++k) m += put_events(out + m, &r->refs[k], a, r->refs[k].id);
         sort_events(out, tmp, m);
-        free(tmp);
+        as_temp_give(tmp);
         out[m] = UINT64_MAX;
         r->run_count[a][h] = m;
     }
@@ -313,14 +318,14 @@ static void root_merge_axis(void *user, int a)
     root_job *r = user;
     const uint64_t *x = r->e->list[a], *y = r->e->list[a] + root_half_at(r->n, 1);
     const size_t m = r->run_count[a][0] + r->run_count[a][1];
-    uint64_t *out = malloc(sizeof(uint64_t) * (m ? m : 1));
+    uint64_t *out = as_temp_take(sizeof(uint64_t) * (m ? m : 1), "KD root events");
     if (!out) {
         atomic_store(&r->failed, 1);
         return;
     }
     for (size_t k = 0; k < m; ++k) out[k] = *x < *y ? *x++ : *y++;
     memcpy(r->e->list[a], out, sizeof(uint64_t) * m);
-    free(out);
+    as_temp_give(out);
     r->e->list[a][m] = UINT64_MAX;
     r->e->count[a] = m;
 }
@@ -449,11 +454,11 @@ static int sah_root_events_radix(const kd_ref *refs, uint32_t n, unsigned thread
     r.refs = refs;
     r.n = n;
     r.chunks = threads > 64 ? 64 : threads;
-    uint64_t *scratch = malloc(sizeof(uint64_t) * 3 * 2 * (size_t)n);
+    uint64_t *scratch = as_temp_take(sizeof(uint64_t) * 3 * 2 * (size_t)n, "KD root events");
     r.made = malloc(sizeof(size_t) * 3 * r.chunks);
     r.count = malloc(sizeof(uint32_t) * 3 * r.chunks * ROOT_RADIX_BUCKETS);
     if (!scratch || !r.made || !r.count) {
-        free(scratch);
+        as_temp_give(scratch);
         free(r.made);
         free(r.count);
         return 0;
@@ -480,7 +485,7 @@ static int sah_root_events_radix(const kd_ref *refs, uint32_t n, unsigned thread
         e->list[a][r.m[a]] = UINT64_MAX;
         e->count[a] = r.m[a];
     }
-    free(scratch);
+    as_temp_give(scratch);
     free(r.made);
     free(r.count);
     return 1;
@@ -504,13 +509,13 @@ static void *sah_root_events(const kd_ctx *c, const kd_ref *refs, uint32_t n)
     const unsigned threads = as_thread_count(c->args->thread_count);
     if (threads >= ROOT_RADIX_MIN_THREADS && n >= ROOT_RADIX_MIN_REFS) {
         if (sah_root_events_radix(refs, n, threads, e)) return e;
-        free(e);
+        events_free(e);
         return NULL;
     }
     as_parallel_run(threads < 2 ? 1 : (threads < 3 * ROOT_HALVES ? threads : 3 * ROOT_HALVES), root_sort_half, &r);
     if (!atomic_load(&r.failed)) for_each_axis(axis_threads(c, e, n), root_merge_axis, &r);
     if (atomic_load(&r.failed)) {
-        free(e);
+        events_free(e);
         return NULL;
     }
     return e;
@@ -885,8 +890,8 @@ static int sah_child_events(const kd_ctx *c, const void *parent_state, kd_scratc
     out[1] = cj.e[1];
     return 1;
 fail:
-    free(cj.e[0]);
-    free(cj.e[1]);
+    events_free(cj.e[0]);
+    events_free(cj.e[1]);
     out[0] = out[1] = NULL;
     return 0;
 }
@@ -1983,12 +1988,12 @@ int kd_sah_choose_plane(const as_build_args_t *args, const kd_ref *refs, uint32_
     sah_events *e = sah_root_events(&c, refs, n);
     if (!e) return -1;
     const int chosen = sah_choose(&c, e, refs, n, box, 0, out);
-    free(e);
+    events_free(e);
     return chosen;
 }
 
 as_error_t as_kd_build_sah(const as_mesh_t *mesh, const as_build_args_t *args, as_structure_t *s)
 {
-    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, free};
+    static const kd_builder_ops ops = {AS_BUILDER_KD_SAH, sah_choose, sah_root_events, sah_child_events, events_free};
     return kd_build(mesh, args, &ops, s);
 }

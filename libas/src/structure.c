@@ -125,6 +125,90 @@ void as_block_give(void *p, size_t bytes, int huge)
     for (unsigned i = 0; i < nd; ++i) free(drop[i]);
 }
 
+/* Temporaries by power-of-two size class (as_temp_take), kept for the
+ * next ones. A KD SAH build frees and makes its nodes' event lists and
+ * reference arrays level after level, and malloc gave many of their pages
+ * back to the kernel between one and the next (it trims the top of its
+ * heaps and maps large blocks afresh): on staircase with 2 threads, 22,000
+ * page faults a build. Kept by size class, a build reuses what its upper
+ * levels freed, and the next build all of it. Only the pages a request
+ * writes are ever touched, so a class's rounding costs address space, not
+ * memory. */
+#define AS_TEMP_MIN_CLASS 16 /* 64 KB: smaller ones are malloc's (class 0 in their header) */
+#define AS_TEMPS_KEPT_BYTES ((size_t)256 << 20)
+#define AS_TEMP_CLASSES 64
+
+static struct {
+    pthread_mutex_t lock;
+    void *head[AS_TEMP_CLASSES]; /* free blocks of 2^k bytes, each holding the next */
+    size_t total;
+} temps = {PTHREAD_MUTEX_INITIALIZER, {NULL}, 0};
+
+static unsigned temp_class(size_t bytes)
+{
+    unsigned k = AS_TEMP_MIN_CLASS;
+    while (k + 1 < AS_TEMP_CLASSES && ((size_t)1 << k) < bytes) ++k;
+    return k;
+}
+
+/* Each block starts with its class, so that a request may take a block up
+ * to AS_TEMP_REACH classes larger and it still goes back to its own. */
+#define AS_TEMP_HEADER 16
+#define AS_TEMP_REACH 2
+
+void *as_temp_take(size_t bytes, const char *what)
+{
+    unsigned char *p = NULL;
+    if (bytes + AS_TEMP_HEADER < ((size_t)1 << AS_TEMP_MIN_CLASS)) {
+        if ((p = malloc(bytes + AS_TEMP_HEADER)) == NULL) {
+            as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
+            return NULL;
+        }
+        p[0] = 0;
+        return p + AS_TEMP_HEADER;
+    }
+    const unsigned k = temp_class(bytes + AS_TEMP_HEADER);
+    unsigned got = k;
+    pthread_mutex_lock(&temps.lock);
+    for (; got <= k + AS_TEMP_REACH && got < AS_TEMP_CLASSES; ++got)
+        if ((p = temps.head[got]) != NULL) {
+            temps.head[got] = *(void **)(p + AS_TEMP_HEADER);
+            temps.total -= (size_t)1 << got;
+            break;
+        }
+    pthread_mutex_unlock(&temps.lock);
+    if (!p) {
+        got = k;
+        p = malloc((size_t)1 << k);
+    }
+    if (!p) {
+        as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
+        return NULL;
+    }
+    p[0] = (unsigned char)got;
+    return p + AS_TEMP_HEADER;
+}
+
+void as_temp_give(void *block)
+{
+    if (!block) return;
+    unsigned char *p = (unsigned char *)block - AS_TEMP_HEADER;
+    const unsigned k = p[0];
+    if (!k) {
+        free(p);
+        return;
+    }
+    pthread_mutex_lock(&temps.lock);
+    if (temps.total + ((size_t)1 << k) <= AS_TEMPS_KEPT_BYTES) {
+        *(void **)block = temps.head[k];
+        temps.head[k] = p;
+        temps.total += (size_t)1 << k;
+        p = NULL;
+    }
+    pthread_mutex_unlock(&temps.lock);
+    free(p);
+}
+
 size_t as_release_cached_memory(void)
 {
     void *drop[AS_BLOCKS_KEPT];
@@ -136,7 +220,20 @@ size_t as_release_cached_memory(void)
     kept.total = 0;
     pthread_mutex_unlock(&kept.lock);
     for (unsigned i = 0; i < nd; ++i) free(drop[i]);
-    return freed;
+    pthread_mutex_lock(&temps.lock);
+    void *head[AS_TEMP_CLASSES];
+    memcpy(head, temps.head, sizeof head);
+    memset(temps.head, 0, sizeof temps.head);
+    const size_t temp_bytes = temps.total;
+    temps.total = 0;
+    pthread_mutex_unlock(&temps.lock);
+    for (unsigned k = 0; k < AS_TEMP_CLASSES; ++k)
+        while (head[k]) {
+            void *next = *(void **)((unsigned char *)head[k] + AS_TEMP_HEADER);
+            free(head[k]);
+            head[k] = next;
+        }
+    return freed + temp_bytes;
 }
 
 void *as_aligned_alloc(size_t bytes, const char *what)

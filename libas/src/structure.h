@@ -82,6 +82,18 @@ void *as_block_take(size_t bytes, int huge, const char *what);
  * else freed. NULL is ignored. Thread-safe. */
 void as_block_give(void *p, size_t bytes, int huge);
 
+/* A temporary array of `bytes` for a build's work that is freed and asked
+ * for again many times in a build (the KD builder's event lists and
+ * reference arrays): from AS_TEMP_MIN_BYTES on, a block of the next power of
+ * two that an earlier temporary of this or an earlier build gave back
+ * (as_temp_give), else fresh; smaller ones from malloc. Its contents are
+ * undefined. NULL with the error set when out of memory. Thread-safe. */
+void *as_temp_take(size_t bytes, const char *what);
+/* Gives back a temporary from as_temp_take of `bytes` (the same figure):
+ * kept for a later as_temp_take of its size class while the kept ones come
+ * to at most 256 MB of blocks, else freed. NULL is ignored. Thread-safe. */
+void as_temp_give(void *p);
+
 /* What libas knows of one stored layout: its sections, and how to validate,
  * describe and trace it. One table per layout, in the layout's own file
  * (bvh2_layout_ops.c, ...); adding a structure adds a table to as_layouts. */

@@ -301,12 +301,15 @@ as_structure_t *as_structure_load_memory(const void *data, size_t size, const ch
  * 16 blocks and 512 MB as the builds asked for them, the oldest freed first
  * when more come. A block is reused for a request of half its size or more
  * and counted at the request's size, so the cache may hold up to twice that
- * (about 1 GB). */
+ * (about 1 GB). Beside it, the temporary arrays that a build frees and asks
+ * for again many times (the KD SAH builder's event lists and reference
+ * arrays) are kept by power-of-two size class, up to 256 MB of blocks, for
+ * the rest of the build and the next builds. */
 void as_structure_release(as_structure_t *s);
 
-/* Frees every block of that cache now and returns the bytes it counted
- * (as above: what the builds asked for; the blocks may be up to twice as
- * large); 0 when it was empty. Blocks go back with free(), so malloc
+/* Frees every block of those caches now and returns the bytes they counted
+ * (as above: what the builds asked for, the blocks may be up to twice as
+ * large; the temporaries at their classes' sizes); 0 when both were empty. Blocks go back with free(), so malloc
  * decides when the system gets them (at once for those it mapped).
  * Thread-safe: a build running meanwhile keeps what it took and gives it
  * back to the cache when it ends. */
