@@ -62,7 +62,7 @@
 /* Reference memory, one per running task (a thread builds one task at a
  * time), kept for the whole build and handed from task to task:
  *
- * - an arena for the sides of nodes below BVH_PARALLEL_MIN_PRIMS, whose
+ * - an arena for the sides of nodes below SBVH_SHARE_MIN_PRIMS, whose
  *   subtrees this thread builds alone, depth first: a node's sides are
  *   taken from the top and given back when both children's subtrees are
  *   done (larger nodes, whose right side may go to another task, and sides
@@ -73,7 +73,14 @@
  * So a split below that size costs no malloc and no free, the leaves need
  * no free of their own (which one thread did for every leaf after the
  * output walk), and the arena is reused while it is still in the cache. */
-#define SBVH_ARENA_REFS 32768u      /* 1 MB: about 4 x BVH_PARALLEL_MIN_PRIMS, a path of sides */
+/* Right children down to this size may go to a thread that waits for
+ * work. At 4,096 (BVH_PARALLEL_MIN_PRIMS), 16 threads spent the last
+ * quarter of a bunny build waiting on a few subtrees of 2,000 to 4,000
+ * references, each several milliseconds of spatial binning; at 1,024 the
+ * build took 0.72 of the time on an H100 host's 16 cores (staircase 0.90),
+ * and the same on 2 cores. */
+#define SBVH_SHARE_MIN_PRIMS 1024u
+#define SBVH_ARENA_REFS 32768u      /* 1 MB: a path of sides below SBVH_SHARE_MIN_PRIMS, many times over */
 #define SBVH_LEAF_CHUNK_REFS 2048u  /* 64 KB */
 
 /* Sides of nodes of at least SBVH_SPARE_MIN_REFS references come from the
@@ -567,7 +574,7 @@ static int sides_alloc(sbvh_mem *m, uint32_t count, int right_first, sides *out)
 {
     out->nl = out->nr = 0;
     const uint32_t cap = count ? count : 1;
-    if (m && m->arena && count < BVH_PARALLEL_MIN_PRIMS && 2 * cap <= SBVH_ARENA_REFS - m->arena_top) {
+    if (m && m->arena && count < SBVH_SHARE_MIN_PRIMS && 2 * cap <= SBVH_ARENA_REFS - m->arena_top) {
         out->owned = 0;
         out->arena_mark = m->arena_top;
         out->l = m->arena + m->arena_top;
@@ -841,7 +848,7 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pe
     const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, sd.owned, sd.lcap, lbudget, t->depth + 1};
     const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, sd.owned, sd.rcap, rbudget, t->depth + 1};
     bvh_pending rp = {&rt, 0};
-    const int tracked = pool && sd.owned && rt.count >= BVH_PARALLEL_MIN_PRIMS && bvh_pending_push(pend, &rp);
+    const int tracked = pool && sd.owned && rt.count >= SBVH_SHARE_MIN_PRIMS && bvh_pending_push(pend, &rp);
     sbvh_subtree(pool, loc, m, pend, &lt);
     if (tracked) bvh_pending_pop(pend);
     if (!rp.given) sbvh_subtree(pool, loc, m, pend, &rt);
