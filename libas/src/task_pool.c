@@ -27,7 +27,9 @@ struct as_task_pool {
     unsigned char *stack;
     size_t depth, capacity;
     size_t active;          /* tasks queued or running */
-    atomic_int waiting;     /* threads asleep on `wake` */
+    atomic_int waiting;     /* threads watching for work or asleep on `wake` */
+    atomic_uint news;       /* under the lock: changed whenever a task is pushed, a step is published or
+                             * the last task ends, for a watching thread to see without the lock */
     atomic_int queued;      /* depth, readable without the lock */
     as_task_fn run;
     void *user;
@@ -50,6 +52,7 @@ int as_task_pool_push(as_task_pool *p, const void *task)
     p->depth++;
     atomic_store_explicit(&p->queued, (int)p->depth, memory_order_relaxed);
     p->active++;
+    atomic_fetch_add_explicit(&p->news, 1, memory_order_release);
     pthread_cond_signal(&p->wake);
     pthread_mutex_unlock(&p->lock);
     return 1;
@@ -107,7 +110,20 @@ static void *worker(void *arg)
         while (p->depth == 0 && p->active > 0) {
             if (help_if_asked(p)) continue;
             atomic_fetch_add(&p->waiting, 1);
-            pthread_cond_wait(&p->wake, &p->lock);
+            /* Watch first (AS_SPIN_NS), then sleep. */
+            const unsigned seen = atomic_load_explicit(&p->news, memory_order_relaxed);
+            pthread_mutex_unlock(&p->lock);
+            const double end = as_spin_now_ns() + AS_SPIN_NS;
+            int changed = 0;
+            while (!changed) {
+                for (int k = 0; k < 64 && !changed; ++k) {
+                    changed = atomic_load_explicit(&p->news, memory_order_acquire) != seen;
+                    as_spin_pause();
+                }
+                if (as_spin_now_ns() > end) break;
+            }
+            pthread_mutex_lock(&p->lock);
+            if (atomic_load_explicit(&p->news, memory_order_relaxed) == seen) pthread_cond_wait(&p->wake, &p->lock);
             atomic_fetch_sub(&p->waiting, 1);
         }
         if (p->depth == 0) break; /* nothing queued, nothing running: done */
@@ -117,7 +133,10 @@ static void *worker(void *arg)
         pthread_mutex_unlock(&p->lock);
         p->run(p, task, p->user);
         pthread_mutex_lock(&p->lock);
-        if (--p->active == 0) pthread_cond_broadcast(&p->wake);
+        if (--p->active == 0) {
+            atomic_fetch_add_explicit(&p->news, 1, memory_order_release);
+            pthread_cond_broadcast(&p->wake);
+        }
     }
     pthread_mutex_unlock(&p->lock);
     current_pool = outer;
@@ -140,6 +159,7 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
     p.user = user;
     atomic_init(&p.waiting, 0);
     atomic_init(&p.queued, 0);
+    atomic_init(&p.news, 0);
     if (pthread_mutex_init(&p.lock, NULL) != 0) return 0;
     if (pthread_cond_init(&p.wake, NULL) != 0) {
         pthread_mutex_destroy(&p.lock);
@@ -194,6 +214,7 @@ static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user,
     const int published = p->help == NULL;
     if (published) {
         p->help = &h;
+        atomic_fetch_add_explicit(&p->news, 1, memory_order_release);
         if (atomic_load_explicit(&p->waiting, memory_order_relaxed) > 0) pthread_cond_broadcast(&p->wake);
     }
     pthread_mutex_unlock(&p->lock);

@@ -5,15 +5,39 @@
 
 #include <pthread.h>
 #include <signal.h>
+#include <stdatomic.h>
+#include <time.h>
 #include <stdlib.h>
 
 typedef struct crew_thread {
     pthread_t tid;
     pthread_cond_t wake;
-    as_crew_batch *batch; /* NULL while waiting */
+    _Atomic(as_crew_batch *) batch; /* NULL while waiting; set under crew_lock */
+    int asleep;                     /* under crew_lock: in pthread_cond_wait, to be signalled */
     unsigned index;
     struct crew_thread *next_idle;
 } crew_thread;
+
+double as_spin_now_ns(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
+}
+
+/* t's next batch if one comes within AS_SPIN_NS, else NULL. */
+static as_crew_batch *crew_watch(crew_thread *t)
+{
+    const double end = as_spin_now_ns() + AS_SPIN_NS;
+    for (;;) {
+        for (int k = 0; k < 64; ++k) {
+            as_crew_batch *b = atomic_load_explicit(&t->batch, memory_order_acquire);
+            if (b) return b;
+            as_spin_pause();
+        }
+        if (as_spin_now_ns() > end) return NULL;
+    }
+}
 
 static pthread_mutex_t crew_lock = PTHREAD_MUTEX_INITIALIZER;
 static pthread_cond_t crew_done = PTHREAD_COND_INITIALIZER;
@@ -49,23 +73,37 @@ static void *crew_main(void *arg)
     const unsigned parked_max = crew_parked_max();
     pthread_mutex_lock(&crew_lock);
     for (;;) {
-        while (!t->batch && !crew_quit) pthread_cond_wait(&t->wake, &crew_lock);
-        if (!t->batch) break; /* unloading: crew_release took it off the idle list and joins it */
-        as_crew_batch *b = t->batch;
+        as_crew_batch *b = atomic_load_explicit(&t->batch, memory_order_acquire);
+        if (!b && !crew_quit) {
+            pthread_mutex_unlock(&crew_lock);
+            b = crew_watch(t);
+            pthread_mutex_lock(&crew_lock);
+            if (!b) b = atomic_load_explicit(&t->batch, memory_order_acquire);
+            while (!b && !crew_quit) {
+                t->asleep = 1;
+                pthread_cond_wait(&t->wake, &crew_lock);
+                t->asleep = 0;
+                b = atomic_load_explicit(&t->batch, memory_order_acquire);
+            }
+        }
+        if (!b) break; /* unloading: crew_release took it off the idle list and joins it */
         const unsigned i = t->index;
         pthread_mutex_unlock(&crew_lock);
         b->fn(b->user, i);
         pthread_mutex_lock(&crew_lock);
-        t->batch = NULL;
+        atomic_store_explicit(&t->batch, NULL, memory_order_relaxed);
         const int leave = crew_quit || crew_parked >= parked_max;
         if (!leave) {
             t->next_idle = crew_idle;
             crew_idle = t;
             crew_parked++;
         }
-        /* b may be gone once its owner sees it finished: nothing of it is
-         * read after this. */
-        if (++b->finished == b->n - b->unstarted) pthread_cond_broadcast(&crew_done);
+        /* b may be gone as soon as its owner sees the count complete (it
+         * watches it without the lock): its fields are read first, and
+         * nothing of it after. */
+        const unsigned started = b->n - b->unstarted;
+        if (atomic_fetch_add_explicit(&b->finished, 1, memory_order_release) + 1 == started)
+            pthread_cond_broadcast(&crew_done);
         if (leave) {
             pthread_mutex_unlock(&crew_lock);
             pthread_detach(pthread_self());
@@ -130,7 +168,7 @@ void as_crew_start(as_crew_batch *b, unsigned n, void (*fn)(void *user, unsigned
     b->fn = fn;
     b->user = user;
     b->n = n;
-    b->finished = 0;
+    atomic_init(&b->finished, 0);
     b->unstarted = 0;
     pthread_mutex_lock(&crew_lock);
     for (unsigned i = 0; i < n; ++i) {
@@ -145,9 +183,9 @@ void as_crew_start(as_crew_batch *b, unsigned n, void (*fn)(void *user, unsigned
             b->unstarted = n - i;
             break;
         }
-        t->batch = b;
         t->index = i;
-        pthread_cond_signal(&t->wake);
+        atomic_store_explicit(&t->batch, b, memory_order_release);
+        if (t->asleep) pthread_cond_signal(&t->wake);
     }
     pthread_mutex_unlock(&crew_lock);
 }
@@ -155,7 +193,16 @@ void as_crew_start(as_crew_batch *b, unsigned n, void (*fn)(void *user, unsigned
 void as_crew_wait(as_crew_batch *b)
 {
     for (unsigned i = b->n - b->unstarted; i < b->n; ++i) b->fn(b->user, i);
+    const unsigned started = b->n - b->unstarted;
+    const double end = as_spin_now_ns() + AS_SPIN_NS;
+    for (;;) {
+        for (int k = 0; k < 64; ++k) {
+            if (atomic_load_explicit(&b->finished, memory_order_acquire) >= started) return;
+            as_spin_pause();
+        }
+        if (as_spin_now_ns() > end) break;
+    }
     pthread_mutex_lock(&crew_lock);
-    while (b->finished < b->n - b->unstarted) pthread_cond_wait(&crew_done, &crew_lock);
+    while (atomic_load_explicit(&b->finished, memory_order_acquire) < started) pthread_cond_wait(&crew_done, &crew_lock);
     pthread_mutex_unlock(&crew_lock);
 }
