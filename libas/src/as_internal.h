@@ -62,6 +62,22 @@ static inline void as_chunk_range(uint32_t total, unsigned i, unsigned n, uint32
 /* The next float towards -inf / +inf of a float that is not NaN
  * (nextafterf without the library call, which showed in builders'
  * profiles): +inf steps down to FLT_MAX, -inf up to -FLT_MAX. */
+/* Set bits of x. The build targets x86-64 without POPCNT, where
+ * __builtin_popcountll is a call into libgcc's table loop (1.5% of a
+ * 16-thread binned build's samples, in its partition); these dozen
+ * instructions inline are several times faster. */
+static inline uint32_t as_popcount64(uint64_t x)
+{
+#if defined(__POPCNT__)
+    return (uint32_t)__builtin_popcountll(x);
+#else
+    x = x - ((x >> 1) & 0x5555555555555555ull);
+    x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+    x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0full;
+    return (uint32_t)((x * 0x0101010101010101ull) >> 56);
+#endif
+}
+
 static inline float as_float_next_down(float f)
 {
     uint32_t u;

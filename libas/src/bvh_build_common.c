@@ -771,7 +771,7 @@ static uint32_t mark_sides(const uint32_t *bins, uint32_t count, const bvh_objec
 #endif
         for (; k < n; ++k) word |= (uint64_t)(((id[k] >> shift) & 0xffu) <= bin) << k;
         bits[w] = word;
-        nl += (uint32_t)__builtin_popcountll(word);
+        nl += (uint32_t)as_popcount64(word);
     }
     return nl;
 }
@@ -801,7 +801,7 @@ static void swap_misplaced(bvh_ref *refs, const uint64_t *bits, uint32_t nl, uin
     uint64_t lm, rm;
     for (;; ++wl) {
         lm = left_misplaced(bits, nl, wl);
-        const uint32_t pc = (uint32_t)__builtin_popcountll(lm);
+        const uint32_t pc = (uint32_t)as_popcount64(lm);
         if (skip < pc) break;
         skip -= pc;
     }
@@ -809,7 +809,7 @@ static void swap_misplaced(bvh_ref *refs, const uint64_t *bits, uint32_t nl, uin
     skip = k0;
     for (;; --wr) {
         rm = right_misplaced(bits, nl, wr);
-        const uint32_t pc = (uint32_t)__builtin_popcountll(rm);
+        const uint32_t pc = (uint32_t)as_popcount64(rm);
         if (skip < pc) break;
         skip -= pc;
     }
@@ -831,7 +831,7 @@ static void swap_misplaced(bvh_ref *refs, const uint64_t *bits, uint32_t nl, uin
 static uint32_t count_misplaced(const uint64_t *bits, uint32_t nl)
 {
     uint32_t m = 0;
-    for (uint32_t w = 0; 64 * w < nl; ++w) m += (uint32_t)__builtin_popcountll(left_misplaced(bits, nl, w));
+    for (uint32_t w = 0; 64 * w < nl; ++w) m += (uint32_t)as_popcount64(left_misplaced(bits, nl, w));
     return m;
 }
 

@@ -44,9 +44,9 @@ uint32_t as_mesh_degenerate_in_range(const as_mesh_t *mesh, uint32_t first, uint
     const uint64_t *w = mesh->degenerate_bits;
     const uint32_t w0 = first >> 6, w1 = (end - 1) >> 6;
     const uint64_t head = ~(uint64_t)0 << (first & 63), tail = ~(uint64_t)0 >> (63 - ((end - 1) & 63));
-    if (w0 == w1) return (uint32_t)__builtin_popcountll(w[w0] & head & tail);
-    uint32_t n = (uint32_t)__builtin_popcountll(w[w0] & head) + (uint32_t)__builtin_popcountll(w[w1] & tail);
-    for (uint32_t k = w0 + 1; k < w1; ++k) n += (uint32_t)__builtin_popcountll(w[k]);
+    if (w0 == w1) return (uint32_t)as_popcount64(w[w0] & head & tail);
+    uint32_t n = (uint32_t)as_popcount64(w[w0] & head) + (uint32_t)as_popcount64(w[w1] & tail);
+    for (uint32_t k = w0 + 1; k < w1; ++k) n += (uint32_t)as_popcount64(w[k]);
     return n;
 }
 
