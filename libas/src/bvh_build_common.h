@@ -19,8 +19,11 @@
  * this size: a thread that runs out of work waits until the other's
  * subtree is done, and at 4,096 that wait (up to a 4,096-reference
  * subtree's build) was a tenth of a 2-thread build of staircase2's 30,927
- * triangles. A shared subtree costs a lock and a wake-up. */
-#define BVH_SHARE_MIN_PRIMS 1024
+ * triangles. At 1,024, 16 threads still spent the last fifth of a bunny
+ * build waiting on a few such subtrees; at 256 the build took 0.93 of the
+ * time (staircase2 0.91), the same on 2 cores. A shared subtree costs a
+ * lock, and a wake-up only where no thread is watching for work. */
+#define BVH_SHARE_MIN_PRIMS 256
 #define BVH_MAX_BINS 256
 
 /* 32 bytes: a triangle's (possibly clipped, SBVH) box and its source index. */

@@ -78,8 +78,8 @@
  * quarter of a bunny build waiting on a few subtrees of 2,000 to 4,000
  * references, each several milliseconds of spatial binning; at 1,024 the
  * build took 0.72 of the time on an H100 host's 16 cores (staircase 0.90),
- * and the same on 2 cores. */
-#define SBVH_SHARE_MIN_PRIMS 1024u
+ * and at 256 0.93 of that again (staircase2 0.83), 2 cores 0.97 to 0.99. */
+#define SBVH_SHARE_MIN_PRIMS 256u
 #define SBVH_ARENA_REFS 32768u      /* 1 MB: a path of sides below SBVH_SHARE_MIN_PRIMS, many times over */
 #define SBVH_LEAF_CHUNK_REFS 2048u  /* 64 KB */
 
