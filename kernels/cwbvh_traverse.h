@@ -17,10 +17,17 @@
 
 AS_HD uint32_t as_popc32(uint32_t x)
 {
-#ifdef __CUDA_ARCH__
+#if defined(__CUDA_ARCH__)
     return (uint32_t)__popc(x);
-#else
+#elif defined(__POPCNT__) || !(defined(__x86_64__) || defined(__i386__))
     return (uint32_t)__builtin_popcount(x);
+#else
+    /* x86 without POPCNT in the target: __builtin_popcount would call
+     * libgcc's table loop once per node visited. */
+    x = x - ((x >> 1) & 0x55555555u);
+    x = (x & 0x33333333u) + ((x >> 2) & 0x33333333u);
+    x = (x + (x >> 4)) & 0x0f0f0f0fu;
+    return (x * 0x01010101u) >> 24;
 #endif
 }
 
