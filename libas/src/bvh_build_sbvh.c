@@ -717,7 +717,8 @@ typedef struct part_job {
     uint32_t count, pieces;
     uint8_t *outcome;
     uint32_t *nl, *nr;        /* per piece: its counts, then where it writes */
-    bvh_box *lbox, *rbox;     /* per piece: its sides' boxes, then their centroid boxes */
+    bvh_box *lbox, *rbox;     /* per piece: its sides' boxes */
+    bvh_box *lcbox, *rcbox;   /* per piece: its sides' centroid boxes (doubled) */
     sides *out;
     atomic_uint next;
 } part_job;
@@ -758,8 +759,8 @@ static void part_place(void *user, unsigned c, unsigned n)
         for (uint32_t i = first; i < end; ++i) part_write(j->plan, &j->refs[i], j->outcome[i], &l, &r, NULL, NULL);
         j->lbox[k] = bvh_refs_box(l0, (uint32_t)(l - l0));
         j->rbox[k] = bvh_refs_box(r0, (uint32_t)(r - r0));
-        j->lbox[2 * j->pieces + k] = bvh_refs_centroid2_box(l0, (uint32_t)(l - l0));
-        j->rbox[2 * j->pieces + k] = bvh_refs_centroid2_box(r0, (uint32_t)(r - r0));
+        j->lcbox[k] = bvh_refs_centroid2_box(l0, (uint32_t)(l - l0));
+        j->rcbox[k] = bvh_refs_centroid2_box(r0, (uint32_t)(r - r0));
     }
 }
 
@@ -803,6 +804,8 @@ static int partition(sbvh_mem *m, const part_plan *plan, const bvh_ref *refs, ui
     j.pieces = pieces;
     j.nr = j.nl + pieces;
     j.rbox = j.lbox + pieces;
+    j.lcbox = j.lbox + 2 * pieces;
+    j.rcbox = j.lbox + 3 * pieces;
     j.out = out;
     if (threads > pieces) threads = pieces;
     atomic_init(&j.next, 0);
@@ -823,8 +826,8 @@ static int partition(sbvh_mem *m, const part_plan *plan, const bvh_ref *refs, ui
     for (uint32_t k = 0; k < pieces; ++k) {
         bvh_box_grow(&out->lbox, j.lbox[k].lo, j.lbox[k].hi);
         bvh_box_grow(&out->rbox, j.rbox[k].lo, j.rbox[k].hi);
-        bvh_box_grow(&out->lcbox, j.lbox[2 * pieces + k].lo, j.lbox[2 * pieces + k].hi);
-        bvh_box_grow(&out->rcbox, j.rbox[2 * pieces + k].lo, j.rbox[2 * pieces + k].hi);
+        bvh_box_grow(&out->lcbox, j.lcbox[k].lo, j.lcbox[k].hi);
+        bvh_box_grow(&out->rcbox, j.rcbox[k].lo, j.rcbox[k].hi);
     }
     out->centroids = 1;
     free(j.outcome);

@@ -159,27 +159,23 @@ static unsigned temp_class(size_t bytes)
 void *as_temp_take(size_t bytes, const char *what)
 {
     unsigned char *p = NULL;
+    unsigned got = 0;
     if (bytes + AS_TEMP_HEADER < ((size_t)1 << AS_TEMP_MIN_CLASS)) {
-        if ((p = malloc(bytes + AS_TEMP_HEADER)) == NULL) {
-            as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);
-            return NULL;
+        p = malloc(bytes + AS_TEMP_HEADER);
+    } else {
+        const unsigned k = temp_class(bytes + AS_TEMP_HEADER);
+        pthread_mutex_lock(&temps.lock);
+        for (got = k; got <= k + AS_TEMP_REACH && got < AS_TEMP_CLASSES; ++got)
+            if ((p = temps.head[got]) != NULL) {
+                temps.head[got] = *(void **)(p + AS_TEMP_HEADER);
+                temps.total -= (size_t)1 << got;
+                break;
+            }
+        pthread_mutex_unlock(&temps.lock);
+        if (!p) {
+            got = k;
+            p = malloc((size_t)1 << k);
         }
-        p[0] = 0;
-        return p + AS_TEMP_HEADER;
-    }
-    const unsigned k = temp_class(bytes + AS_TEMP_HEADER);
-    unsigned got = k;
-    pthread_mutex_lock(&temps.lock);
-    for (; got <= k + AS_TEMP_REACH && got < AS_TEMP_CLASSES; ++got)
-        if ((p = temps.head[got]) != NULL) {
-            temps.head[got] = *(void **)(p + AS_TEMP_HEADER);
-            temps.total -= (size_t)1 << got;
-            break;
-        }
-    pthread_mutex_unlock(&temps.lock);
-    if (!p) {
-        got = k;
-        p = malloc((size_t)1 << k);
     }
     if (!p) {
         as_set_error(AS_ERROR_OUT_OF_MEMORY, "out of memory allocating %zu bytes for %s", bytes, what);

@@ -99,6 +99,18 @@ static int help_if_asked(as_task_pool *p)
     return 1;
 }
 
+/* What a thread that watches the pool saw last. */
+typedef struct pool_news {
+    as_task_pool *p;
+    unsigned seen;
+} pool_news;
+
+static int news_came(const void *arg)
+{
+    const pool_news *w = arg;
+    return atomic_load_explicit(&w->p->news, memory_order_acquire) != w->seen;
+}
+
 static void *worker(void *arg)
 {
     as_task_pool *p = arg;
@@ -110,20 +122,12 @@ static void *worker(void *arg)
         while (p->depth == 0 && p->active > 0) {
             if (help_if_asked(p)) continue;
             atomic_fetch_add(&p->waiting, 1);
-            /* Watch first (AS_SPIN_NS), then sleep. */
-            const unsigned seen = atomic_load_explicit(&p->news, memory_order_relaxed);
+            /* Watch first (as_spin_until), then sleep. */
+            const pool_news w = {p, atomic_load_explicit(&p->news, memory_order_relaxed)};
             pthread_mutex_unlock(&p->lock);
-            const double end = as_spin_now_ns() + AS_SPIN_NS;
-            int changed = 0;
-            while (!changed) {
-                for (int k = 0; k < 64 && !changed; ++k) {
-                    changed = atomic_load_explicit(&p->news, memory_order_acquire) != seen;
-                    as_spin_pause();
-                }
-                if (as_spin_now_ns() > end) break;
-            }
+            as_spin_until(news_came, &w);
             pthread_mutex_lock(&p->lock);
-            if (atomic_load_explicit(&p->news, memory_order_relaxed) == seen) pthread_cond_wait(&p->wake, &p->lock);
+            if (!news_came(&w)) pthread_cond_wait(&p->wake, &p->lock);
             atomic_fetch_sub(&p->waiting, 1);
         }
         if (p->depth == 0) break; /* nothing queued, nothing running: done */

@@ -18,25 +18,38 @@ typedef struct crew_thread {
     struct crew_thread *next_idle;
 } crew_thread;
 
-double as_spin_now_ns(void)
+static double now_ns(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec * 1e9 + (double)ts.tv_nsec;
 }
 
-/* t's next batch if one comes within AS_SPIN_NS, else NULL. */
-static as_crew_batch *crew_watch(crew_thread *t)
+int as_spin_until(int (*ready)(const void *arg), const void *arg)
 {
-    const double end = as_spin_now_ns() + AS_SPIN_NS;
+    const double end = now_ns() + AS_SPIN_NS;
     for (;;) {
+        /* The clock is read once every 64 looks. */
         for (int k = 0; k < 64; ++k) {
-            as_crew_batch *b = atomic_load_explicit(&t->batch, memory_order_acquire);
-            if (b) return b;
-            as_spin_pause();
+            if (ready(arg)) return 1;
+#if defined(__x86_64__) || defined(__i386__)
+            __builtin_ia32_pause();
+#endif
         }
-        if (as_spin_now_ns() > end) return NULL;
+        if (now_ns() > end) return 0;
     }
+}
+
+static int batch_given(const void *arg)
+{
+    const crew_thread *t = arg;
+    return atomic_load_explicit(&t->batch, memory_order_acquire) != NULL;
+}
+
+static int batch_finished(const void *arg)
+{
+    const as_crew_batch *b = arg;
+    return atomic_load_explicit(&b->finished, memory_order_acquire) >= b->n - b->unstarted;
 }
 
 static pthread_mutex_t crew_lock = PTHREAD_MUTEX_INITIALIZER;
@@ -76,9 +89,9 @@ static void *crew_main(void *arg)
         as_crew_batch *b = atomic_load_explicit(&t->batch, memory_order_acquire);
         if (!b && !crew_quit) {
             pthread_mutex_unlock(&crew_lock);
-            b = crew_watch(t);
+            as_spin_until(batch_given, t);
             pthread_mutex_lock(&crew_lock);
-            if (!b) b = atomic_load_explicit(&t->batch, memory_order_acquire);
+            b = atomic_load_explicit(&t->batch, memory_order_acquire);
             while (!b && !crew_quit) {
                 t->asleep = 1;
                 pthread_cond_wait(&t->wake, &crew_lock);
@@ -193,16 +206,8 @@ void as_crew_start(as_crew_batch *b, unsigned n, void (*fn)(void *user, unsigned
 void as_crew_wait(as_crew_batch *b)
 {
     for (unsigned i = b->n - b->unstarted; i < b->n; ++i) b->fn(b->user, i);
-    const unsigned started = b->n - b->unstarted;
-    const double end = as_spin_now_ns() + AS_SPIN_NS;
-    for (;;) {
-        for (int k = 0; k < 64; ++k) {
-            if (atomic_load_explicit(&b->finished, memory_order_acquire) >= started) return;
-            as_spin_pause();
-        }
-        if (as_spin_now_ns() > end) break;
-    }
+    if (as_spin_until(batch_finished, b)) return;
     pthread_mutex_lock(&crew_lock);
-    while (atomic_load_explicit(&b->finished, memory_order_acquire) < started) pthread_cond_wait(&crew_done, &crew_lock);
+    while (!batch_finished(b)) pthread_cond_wait(&crew_done, &crew_lock);
     pthread_mutex_unlock(&crew_lock);
 }

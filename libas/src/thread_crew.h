@@ -27,13 +27,8 @@ typedef struct as_crew_batch {
  * of 13 us took 82 us, and 9 us with the watch), and a build takes tens of
  * steps, most of them with little serial work between them. */
 #define AS_SPIN_NS 100000
-double as_spin_now_ns(void);
-static inline void as_spin_pause(void)
-{
-#if defined(__x86_64__) || defined(__i386__)
-    __builtin_ia32_pause();
-#endif
-}
+/* Watches for ready(arg) for up to AS_SPIN_NS; returns whether it held. */
+int as_spin_until(int (*ready)(const void *arg), const void *arg);
 
 /* Starts fn(user, i) for each i in [0, n) on threads of the crew, which
  * grows when none waits; returns at once. */
