@@ -20,6 +20,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -347,12 +348,17 @@ private:
     size_t size_, pos_ = 0;
 };
 
+/* A plain number the OFF reader reads whole into its 32-bit counts and
+ * indices: the whole word (a NUL inside it would end strtoull's reading
+ * early), at most 4294967295 (a larger one fails the reader's stream, and it
+ * then pushed corners until it had taken 16 GB). */
 bool parse_count(const std::string &w, unsigned long long &n)
 {
     char *after;
     if (w.empty() || !std::isdigit((unsigned char)w[0])) return false;
+    errno = 0;
     n = std::strtoull(w.c_str(), &after, 10);
-    return *after == '\0';
+    return after == w.c_str() + w.size() && errno == 0 && n <= 0xffffffffull;
 }
 
 /* A face line of a text OFF file must hold exactly the corners its count
