@@ -17,8 +17,9 @@ double as_bvh2_sah_from_sums(double ct, double ci, double root_area, double inne
 
 /* One walk for the SAH cost and the statistics; the tree is valid (built or
  * validated), so the explicit stack never holds more than depth + 1. The
- * sums run in pre-order, left child first, as the builders' output walk
- * (bvh_build_common.c) adds them, so both give the same cost to the bit. */
+ * sums run in pre-order, left child first, in blocks (as_sah_sum), as the
+ * builders' output walk (bvh_build_common.c) adds them, so both give the
+ * same cost to the bit. */
 static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
 {
     const as_section_t *ns = as_structure_find(s, ASF_TAG_BVH2);
@@ -28,7 +29,7 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
                                         s->meta.bounds_hi[1], s->meta.bounds_lo[2], s->meta.bounds_hi[2]);
     struct { int32_t node; uint32_t depth; double area; } stack[AS_BVH2_MAX_DEPTH + 2];
     int sp = 0;
-    double inner_area = 0.0, leaf_area_count = 0.0;
+    as_sah_sum inner_area = {0.0, 0.0, 0}, leaf_area_count = {0.0, 0.0, 0};
     uint64_t inner_count = 0, ref_count = 0;
     uint64_t depth_sum = 0;
     stack[sp].node = 0; stack[sp].depth = 0; stack[sp].area = root_area; ++sp;
@@ -37,13 +38,13 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
         const int32_t ni = stack[sp].node;
         const uint32_t depth = stack[sp].depth;
         const as_bvh2_node_t *n = &nodes[ni];
-        inner_area += stack[sp].area;
+        as_sah_sum_add(&inner_area, stack[sp].area);
         inner_count++;
         const double ca[2] = {as_half_area6(n->xy0.x, n->xy0.y, n->xy0.z, n->xy0.w, n->z01.x, n->z01.y),
                               as_half_area6(n->xy1.x, n->xy1.y, n->xy1.z, n->xy1.w, n->z01.z, n->z01.w)};
         for (int k = 0; k < 2; ++k) {
             if (n->child[k] >= 0) continue;
-            leaf_area_count += ca[k] * n->count[k];
+            as_sah_sum_add(&leaf_area_count, ca[k] * n->count[k]);
             ref_count += n->count[k];
             if (!st || n->count[k] == 0) continue; /* the empty sibling of a one-leaf tree */
             st->leaf_count++;
@@ -59,7 +60,8 @@ static double bvh2_walk(const as_structure_t *s, as_structure_stats_t *st)
         }
     }
     if (st) st->average_leaf_depth = st->leaf_count ? (double)depth_sum / (double)st->leaf_count : 0.0;
-    return as_bvh2_sah_from_sums(ct, ci, root_area, inner_area, leaf_area_count, inner_count, ref_count);
+    return as_bvh2_sah_from_sums(ct, ci, root_area, as_sah_sum_value(&inner_area), as_sah_sum_value(&leaf_area_count),
+                                 inner_count, ref_count);
 }
 
 double as_bvh2_sah_cost(const as_structure_t *s) { return bvh2_walk(s, NULL); }

@@ -1010,8 +1010,9 @@ int32_t bvh_build_inplace(bvh_builder *b, bvh_split_fn split)
  * reserves those ranges for subtrees of up to a grain's size, and the
  * subtrees are then written on every thread: the same bytes as one walk.
  * The SAH sums are floating-point, so their order matters: in that case
- * each node's and leaf's term is stored at its pre-order position and the
- * terms are added afterwards in that order, as the one walk adds them. */
+ * each node's and leaf's term is stored at its pre-order position, and the
+ * terms are added afterwards in the blocks of as_sah_sum, the blocks on
+ * every thread and their sums in order, as the one walk adds them. */
 
 typedef struct flatten_task {
     int32_t tnode;
@@ -1031,7 +1032,7 @@ typedef struct flatten_state {
     uint32_t tri_count;
     uint64_t leaf_count;
     uint32_t max_depth;
-    double inner_area, leaf_area_count;   /* SAH sums, in bvh2_walk's order (one walk) */
+    as_sah_sum inner_sum, leaf_sum;       /* SAH sums, in bvh2_walk's order (one walk) */
     double *inner_terms, *leaf_terms;     /* or their terms by pre-order position (NULL: summed) */
     uint64_t inner_pos, leaf_pos;
     uint32_t grain;          /* subtrees of at most this many inner nodes become tasks; 0: none */
@@ -1095,7 +1096,7 @@ static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32
 {
     const bvh_tmp_node *t = &st->b->nodes[tnode];
     if (st->inner_terms) st->inner_terms[st->inner_pos++] = area;
-    else st->inner_area += area;
+    else as_sah_sum_add(&st->inner_sum, area);
     if (depth > st->max_depth) st->max_depth = depth;
     const int32_t kids[2] = {t->left, t->right};
     /* Reserve both inner children first so siblings are adjacent. The
@@ -1124,7 +1125,7 @@ static void flatten(flatten_state *st, int32_t tnode, uint64_t out_index, uint32
             /* An empty leaf's term is +0, which leaves the sum's bits alone. */
             const double term = c->count ? box_area(&c->box) * c->count : 0.0;
             if (st->leaf_terms) st->leaf_terms[st->leaf_pos++] = term;
-            else if (c->count) st->leaf_area_count += term;
+            else as_sah_sum_add(&st->leaf_sum, term);
         }
     }
     for (int k = 0; k < 2; ++k) {
@@ -1183,6 +1184,41 @@ static void walk_tasks(void *user, unsigned i, unsigned n)
     j->part[i].bad = bad;
 }
 
+typedef struct sum_job {
+    const double *terms;
+    uint64_t count;
+    double *block;
+} sum_job;
+
+static void sum_block(void *user, size_t j)
+{
+    const sum_job *job = user;
+    const uint64_t first = (uint64_t)j * AS_SAH_SUM_BLOCK;
+    const uint64_t end = job->count - first < AS_SAH_SUM_BLOCK ? job->count : first + AS_SAH_SUM_BLOCK;
+    double b = 0.0;
+    for (uint64_t i = first; i < end; ++i) b += job->terms[i];
+    job->block[j] = b;
+}
+
+/* The sum as_sah_sum makes of count terms, its blocks on `threads`
+ * threads (on one when there is no memory for their sums). */
+static as_sah_sum sum_terms(const double *terms, uint64_t count, unsigned threads)
+{
+    as_sah_sum sum = {0.0, 0.0, 0};
+    const uint64_t blocks = (count + AS_SAH_SUM_BLOCK - 1) / AS_SAH_SUM_BLOCK;
+    double *block = malloc(sizeof(double) * (size_t)(blocks ? blocks : 1));
+    if (!block) {
+        for (uint64_t i = 0; i < count; ++i) as_sah_sum_add(&sum, terms[i]);
+        return sum;
+    }
+    sum_job job = {terms, count, block};
+    as_parallel_for(threads, (size_t)blocks, sum_block, &job);
+    for (uint64_t j = 0; j < blocks; ++j) sum.total += block[j];
+    sum.count = count;
+    free(block);
+    return sum;
+}
+
 /* Trees with fewer inner nodes than this are written by one thread. */
 #define BVH_WALK_MT_MIN_NODES 2048
 
@@ -1194,11 +1230,11 @@ static int write_tree(flatten_state *st, int32_t root, double root_area, unsigne
     const uint32_t inner = st->b->nodes[root].inner;
     if (threads > 256) threads = 256;
     if (threads > 1 && inner >= BVH_WALK_MT_MIN_NODES) {
-        st->inner_terms = malloc(sizeof(double) * inner);
-        st->leaf_terms = malloc(sizeof(double) * ((size_t)inner + 1));
+        st->inner_terms = as_temp_take(sizeof(double) * inner, "BVH SAH terms");
+        st->leaf_terms = as_temp_take(sizeof(double) * ((size_t)inner + 1), "BVH SAH terms");
         if (!st->inner_terms || !st->leaf_terms) {
-            free(st->inner_terms);
-            free(st->leaf_terms);
+            as_temp_give(st->inner_terms);
+            as_temp_give(st->leaf_terms);
             st->inner_terms = st->leaf_terms = NULL;
         }
     }
@@ -1223,11 +1259,11 @@ static int write_tree(flatten_state *st, int32_t root, double root_area, unsigne
             if (job.part[i].max_depth > st->max_depth) st->max_depth = job.part[i].max_depth;
             bad |= job.part[i].bad;
         }
-        for (uint32_t i = 0; i < inner; ++i) st->inner_area += st->inner_terms[i];
-        for (uint32_t i = 0; i <= inner; ++i) st->leaf_area_count += st->leaf_terms[i];
+        st->inner_sum = sum_terms(st->inner_terms, inner, threads);
+        st->leaf_sum = sum_terms(st->leaf_terms, (uint64_t)inner + 1, threads);
     }
-    free(st->inner_terms);
-    free(st->leaf_terms);
+    as_temp_give(st->inner_terms);
+    as_temp_give(st->leaf_terms);
     free(st->tasks);
     st->inner_terms = st->leaf_terms = NULL;
     st->tasks = NULL;
@@ -1310,8 +1346,9 @@ as_error_t bvh_builder_finish(bvh_builder *b, int32_t root, uint32_t builder_id,
                                   sizeof(as_bvh2_node_t) * inner);
     as_structure_add_kept_section(d, ASF_TAG_TRI4, tris, st.tri_count, sizeof(as_tri4_t),
                                   sizeof(as_tri4_t) * (size_t)(refs ? refs : 1));
-    d->meta.sah_cost = as_bvh2_sah_from_sums(args->cost_traversal, args->cost_intersection, root_area, st.inner_area,
-                                             st.leaf_area_count, st.out_count, st.tri_count);
+    d->meta.sah_cost = as_bvh2_sah_from_sums(args->cost_traversal, args->cost_intersection, root_area,
+                                             as_sah_sum_value(&st.inner_sum), as_sah_sum_value(&st.leaf_sum), st.out_count,
+                                             st.tri_count);
     as_error_t err = AS_OK;
     if (d == &cb) {
         err = as_bvh2_to_own_bounds(&cb, s);

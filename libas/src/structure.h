@@ -200,6 +200,24 @@ double as_bvh2_sah_cost(const as_structure_t *s);
  * count (root_area 0: every area counts 1). */
 double as_bvh2_sah_from_sums(double ct, double ci, double root_area, double inner_area, double leaf_area_count,
                              uint64_t inner_count, uint64_t ref_count);
+/* A BVH2's SAH sums: its terms in pre-order, added in blocks of
+ * AS_SAH_SUM_BLOCK (each block summed from zero, then the blocks' sums in
+ * order), so that a builder writing the tree on several threads can sum
+ * the blocks on several threads too and get the bits one walk gets. */
+#define AS_SAH_SUM_BLOCK 4096
+typedef struct as_sah_sum {
+    double total, block;
+    uint64_t count;
+} as_sah_sum;
+static inline void as_sah_sum_add(as_sah_sum *s, double term)
+{
+    s->block += term;
+    if (++s->count % AS_SAH_SUM_BLOCK == 0) {
+        s->total += s->block;
+        s->block = 0.0;
+    }
+}
+static inline double as_sah_sum_value(const as_sah_sum *s) { return s->total + s->block; }
 /* Half the surface area of a box, in double; 0 for an inverted box. */
 static inline double as_half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
 {

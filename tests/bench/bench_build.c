@@ -15,7 +15,8 @@
  * not counted): one round builds binned SAH, Embree medium, SBVH, Embree
  * high, KD SAH, BIH and the grid back to back in one process (every other
  * round in reverse order), and the ratio printed is the median of the
- * rounds' ratios, with their range. The
+ * rounds' ratios, with their range (with BENCH_ROUNDS set in the
+ * environment, each round's times go to stderr). The
  * targets are judged on those. A benchmark, not a test: it prints figures
  * and asserts nothing. */
 #include "as/as.h"
@@ -245,6 +246,7 @@ static paired run_paired(const as_mesh_t *mesh, int rounds, unsigned threads)
                 return p;
             }
         }
+        if (getenv("BENCH_ROUNDS")) fprintf(stderr, "round %d: bin %.2f em %.2f sbvh %.2f eh %.2f kd %.2f bih %.2f grid %.2f\n", r, ms[0], ms[5], ms[1], ms[6], ms[2], ms[3], ms[4]);
         if (r < 0) continue;
         ratio[PAIR_BIN_EM][r] = ms[0] / ms[5];
         ratio[PAIR_SBVH_EH][r] = ms[1] / ms[6];
