@@ -14,14 +14,17 @@
  * objects are split into two halves of their list (like the BVH's fallback),
  * which keeps the depth logarithmic for many copies of one triangle.
  *
- * Determinism: the shape depends only on the input (sequential in-place
- * partitions per node); node and PRIM order come from one depth-first walk
+ * Determinism: the shape depends only on the input, and each node's
+ * partition is Hoare's, whether one thread runs its loop or a big node's
+ * pieces run on several (partition_bits.h); node and PRIM order come from
+ * one depth-first walk
  * after the build, so the output is byte-identical for any thread count.
  * A right child of at least PARALLEL_MIN_PRIMS objects goes to a thread
  * that waits for work (task_pool.h). */
 #include "spatial_common.h"
 #include "bih_layout.h"
 #include "simd4.h"
+#include "partition_bits.h"
 #include "task_pool.h"
 
 #include <float.h>
@@ -38,6 +41,12 @@
 #define REPORT_STEPS 1024
 /* Retries of the global heuristic before the list-half fallback. */
 #define MAX_EMPTY_RETRIES 128
+/* Nodes of this many objects or more are partitioned in pieces on the
+ * threads that are idle (partition_pieces): one thread's passes over the
+ * root and the next levels had left the others waiting. */
+#define PIECES_MIN_PRIMS 16384
+#define PIECE_PRIMS 4096
+#define PIECES_MAX 256
 
 typedef struct bih_ref {
     float lo[3];
@@ -45,6 +54,8 @@ typedef struct bih_ref {
     float hi[3];
     float pad;
 } bih_ref;
+
+_Static_assert(sizeof(bih_ref) == AS_PARTITION_ITEM_BYTES, "references are partitioned as 32-byte items");
 
 typedef struct bih_tmp {
     int32_t left;            /* tmp index of the left child, -1 for a leaf; right = left + 1 */
@@ -175,6 +186,147 @@ static void build_task(as_task_pool *pool, void *task, void *user)
     build_subtree(pool, user, &t);
 }
 
+/* A node's side of the split and what its partition gathers from the
+ * objects on either side: the clip bounds and the centre boxes (maxima
+ * and minima, which do not depend on the order). */
+typedef struct bih_sides {
+    v4f llo, lhi, rlo, rhi;
+    float lmax, rmin;
+} bih_sides;
+
+static void sides_reset(bih_sides *s)
+{
+    s->llo = s->rlo = v4f_set1(FLT_MAX);
+    s->lhi = s->rhi = v4f_set1(-FLT_MAX);
+    s->lmax = -FLT_MAX;
+    s->rmin = FLT_MAX;
+}
+
+static inline void sides_left(bih_sides *s, const bih_ref *r, int axis)
+{
+    const v4f c = v4f_mul(v4f_set1(0.5f), v4f_add(v4f_load3(r->lo), v4f_load3(r->hi)));
+    s->llo = v4f_min(s->llo, c);
+    s->lhi = v4f_max(s->lhi, c);
+    if (r->hi[axis] > s->lmax) s->lmax = r->hi[axis];
+}
+
+static inline void sides_right(bih_sides *s, const bih_ref *r, int axis)
+{
+    const v4f c = v4f_mul(v4f_set1(0.5f), v4f_add(v4f_load3(r->lo), v4f_load3(r->hi)));
+    s->rlo = v4f_min(s->rlo, c);
+    s->rhi = v4f_max(s->rhi, c);
+    if (r->lo[axis] < s->rmin) s->rmin = r->lo[axis];
+}
+
+static void sides_merge(bih_sides *to, const bih_sides *from)
+{
+    to->llo = v4f_min(to->llo, from->llo);
+    to->lhi = v4f_max(to->lhi, from->lhi);
+    to->rlo = v4f_min(to->rlo, from->rlo);
+    to->rhi = v4f_max(to->rhi, from->rhi);
+    if (from->lmax > to->lmax) to->lmax = from->lmax;
+    if (from->rmin < to->rmin) to->rmin = from->rmin;
+}
+
+/* Hoare's partition of refs[first, first + count) by centre, on this
+ * thread; returns the first object of the right side. */
+static uint32_t partition_hoare(bih_ref *refs, uint32_t first, uint32_t count, int axis, float split, bih_sides *s)
+{
+    uint32_t i = first, j = first + count;
+    for (;;) {
+        while (i < j && centre(&refs[i], axis) < split) sides_left(s, &refs[i++], axis);
+        while (i < j && !(centre(&refs[j - 1], axis) < split)) sides_right(s, &refs[--j], axis);
+        if (i >= j) break;
+        sides_right(s, &refs[i], axis);
+        sides_left(s, &refs[j - 1], axis);
+        const bih_ref t = refs[i];
+        refs[i++] = refs[j - 1];
+        refs[--j] = t;
+    }
+    return i;
+}
+
+/* A big node's partition on the pool's idle threads, in pieces of 64-word
+ * runs of a bit mask of sides: Hoare's permutation (partition_bits.h), so
+ * the same order as partition_hoare. */
+typedef struct bih_piece_job {
+    bih_ref *refs;
+    uint32_t count, nwords, nl, misplaced;
+    int axis;
+    float split;
+    uint64_t *bits;
+    uint32_t piece_nl[PIECES_MAX];
+    bih_sides piece_sides[PIECES_MAX];
+} bih_piece_job;
+
+static void piece_mark(void *user, unsigned i, unsigned n)
+{
+    bih_piece_job *j = user;
+    uint32_t w0, w1, nl = 0;
+    as_chunk_range(j->nwords, i, n, &w0, &w1);
+    bih_sides s;
+    sides_reset(&s);
+    for (uint32_t w = w0; w < w1; ++w) {
+        const uint32_t first = 64 * w, end = j->count - first < 64 ? j->count : first + 64;
+        uint64_t word = 0;
+        for (uint32_t k = first; k < end; ++k) {
+            const bih_ref *r = &j->refs[k];
+            if (centre(r, j->axis) < j->split) {
+                word |= (uint64_t)1 << (k - first);
+                sides_left(&s, r, j->axis);
+            } else {
+                sides_right(&s, r, j->axis);
+            }
+        }
+        j->bits[w] = word;
+        nl += (uint32_t)as_popcount64(word);
+    }
+    j->piece_nl[i] = nl;
+    j->piece_sides[i] = s;
+}
+
+static void piece_swap(void *user, unsigned i, unsigned n)
+{
+    bih_piece_job *j = user;
+    uint32_t k0, k1;
+    as_chunk_range(j->misplaced, i, n, &k0, &k1);
+    as_partition_swap(j->refs, j->bits, j->nl, j->nwords, k0, k1);
+}
+
+/* partition_hoare's result for a node of PIECES_MIN_PRIMS objects or more,
+ * on the pool's threads; UINT32_MAX when there is no memory for the mask
+ * (the caller then runs partition_hoare). */
+static __attribute__((noinline)) uint32_t partition_pieces(bih_ref *refs, uint32_t first, uint32_t count, int axis,
+                                                         float split, bih_sides *s)
+{
+    const uint32_t nwords = (count + 63) / 64;
+    bih_piece_job *j = malloc(sizeof *j);
+    uint64_t *bits = j ? malloc(sizeof(uint64_t) * nwords) : NULL;
+    if (!bits) {
+        free(j);
+        return UINT32_MAX;
+    }
+    j->refs = refs + first;
+    j->count = count;
+    j->nwords = nwords;
+    j->axis = axis;
+    j->split = split;
+    j->bits = bits;
+    const unsigned pieces = count / PIECE_PRIMS < PIECES_MAX ? count / PIECE_PRIMS : PIECES_MAX;
+    as_parallel_run(pieces, piece_mark, j);
+    uint32_t nl = 0;
+    for (unsigned i = 0; i < pieces; ++i) {
+        nl += j->piece_nl[i];
+        sides_merge(s, &j->piece_sides[i]);
+    }
+    j->nl = nl;
+    j->misplaced = as_partition_misplaced(bits, nl);
+    as_parallel_run(pieces, piece_swap, j);
+    free(bits);
+    free(j);
+    return first + nl;
+}
+
 static void build_node(as_task_pool *pool, bih_builder *b, bih_local *u, int32_t node, uint32_t first,
                        uint32_t count, uint32_t depth, const bih_boxes *in)
 {
@@ -212,39 +364,22 @@ static void build_node(as_task_pool *pool, bih_builder *b, bih_local *u, int32_t
     uint32_t mid;
     if (axis >= 0) {
         /* One pass: the partition, each side's clip bound and the children's
-         * centre boxes (maxima and minima do not depend on the order), in
-         * registers. */
-        const v4f half = v4f_set1(0.5f);
-        v4f llo = v4f_set1(FLT_MAX), lhi = v4f_set1(-FLT_MAX), rlo = llo, rhi = lhi;
-        uint32_t i = first, j = first + count;
-        while (i < j) {
-            bih_ref *r = &b->refs[i];
-            const v4f c = v4f_mul(half, v4f_add(v4f_load3(r->lo), v4f_load3(r->hi)));
-            if (centre(r, axis) < split) {
-                llo = v4f_min(llo, c);
-                lhi = v4f_max(lhi, c);
-                if (r->hi[axis] > lmax) lmax = r->hi[axis];
-                ++i;
-                continue;
-            }
-            rlo = v4f_min(rlo, c);
-            rhi = v4f_max(rhi, c);
-            if (r->lo[axis] <= rmin) rmin = r->lo[axis];
-            --j;
-            const bih_ref t = b->refs[i];
-            b->refs[i] = b->refs[j];
-            b->refs[j] = t;
-        }
+         * centre boxes; a big node's on the pool's idle threads too. */
+        bih_sides sd;
+        sides_reset(&sd);
+        mid = pool && count >= PIECES_MIN_PRIMS ? partition_pieces(b->refs, first, count, axis, split, &sd) : UINT32_MAX;
+        if (mid == UINT32_MAX) mid = partition_hoare(b->refs, first, count, axis, split, &sd);
+        lmax = sd.lmax;
+        rmin = sd.rmin;
         float tmp[4];
-        v4f_store(tmp, llo);
+        v4f_store(tmp, sd.llo);
         memcpy(lb.clo, tmp, sizeof lb.clo);
-        v4f_store(tmp, lhi);
+        v4f_store(tmp, sd.lhi);
         memcpy(lb.chi, tmp, sizeof lb.chi);
-        v4f_store(tmp, rlo);
+        v4f_store(tmp, sd.rlo);
         memcpy(rb.clo, tmp, sizeof rb.clo);
-        v4f_store(tmp, rhi);
+        v4f_store(tmp, sd.rhi);
         memcpy(rb.chi, tmp, sizeof rb.chi);
-        mid = i;
         memcpy(lb.cand_lo, cand_lo, sizeof cand_lo);
         memcpy(lb.cand_hi, cand_hi, sizeof cand_hi);
         memcpy(rb.cand_lo, cand_lo, sizeof cand_lo);

@@ -776,65 +776,6 @@ static uint32_t mark_sides(const uint32_t *bins, uint32_t count, const bvh_objec
     return nl;
 }
 
-/* Misplaced references: a zero bit below nl (goes right, sits left), a one
- * bit from nl on. The k-th misplaced on the left, counted from the start,
- * trades places with the k-th on the right, counted from the end: Hoare's
- * permutation. */
-static inline uint64_t left_misplaced(const uint64_t *bits, uint32_t nl, uint32_t w)
-{
-    if (64 * w >= nl) return 0;
-    return 64 * w + 64 <= nl ? ~bits[w] : ~bits[w] & (((uint64_t)1 << (nl - 64 * w)) - 1);
-}
-
-static inline uint64_t right_misplaced(const uint64_t *bits, uint32_t nl, uint32_t w)
-{
-    if (64 * w >= nl) return bits[w];
-    return nl - 64 * w >= 64 ? 0 : bits[w] & ~(((uint64_t)1 << (nl - 64 * w)) - 1);
-}
-
-/* Swaps the misplaced pairs k0 <= k < k1 (pairs are disjoint, so ranges of
- * them may run on different threads). */
-static void swap_misplaced(bvh_ref *refs, const uint64_t *bits, uint32_t nl, uint32_t nwords, uint32_t k0, uint32_t k1)
-{
-    if (k0 >= k1) return;
-    uint32_t wl = 0, wr = nwords - 1, skip = k0;
-    uint64_t lm, rm;
-    for (;; ++wl) {
-        lm = left_misplaced(bits, nl, wl);
-        const uint32_t pc = (uint32_t)as_popcount64(lm);
-        if (skip < pc) break;
-        skip -= pc;
-    }
-    for (; skip; --skip) lm &= lm - 1;
-    skip = k0;
-    for (;; --wr) {
-        rm = right_misplaced(bits, nl, wr);
-        const uint32_t pc = (uint32_t)as_popcount64(rm);
-        if (skip < pc) break;
-        skip -= pc;
-    }
-    for (; skip; --skip) rm &= ~((uint64_t)1 << (63 - __builtin_clzll(rm)));
-    for (uint32_t k = k0;;) {
-        while (!lm) lm = left_misplaced(bits, nl, ++wl);
-        while (!rm) rm = right_misplaced(bits, nl, --wr);
-        const uint32_t p = 64 * wl + (uint32_t)__builtin_ctzll(lm), hb = 63 - (uint32_t)__builtin_clzll(rm);
-        const uint32_t q = 64 * wr + hb;
-        const bvh_ref t = refs[p];
-        refs[p] = refs[q];
-        refs[q] = t;
-        if (++k == k1) return;
-        lm &= lm - 1;
-        rm &= ~((uint64_t)1 << hb);
-    }
-}
-
-static uint32_t count_misplaced(const uint64_t *bits, uint32_t nl)
-{
-    uint32_t m = 0;
-    for (uint32_t w = 0; 64 * w < nl; ++w) m += (uint32_t)as_popcount64(left_misplaced(bits, nl, w));
-    return m;
-}
-
 /* The same permutation as Hoare's partition above, found without its
  * data-dependent branches: a first pass writes each reference's side into a
  * bit mask, a second visits only the misplaced references through the
@@ -852,7 +793,7 @@ uint32_t bvh_partition_object(bvh_builder *b, const bvh_range *node, const bvh_o
     }
     bvh_ref *refs = b->refs + node->first;
     const uint32_t nl = mark_sides(b->ref_bins + node->first, count, s, bits, 0, nwords);
-    swap_misplaced(refs, bits, nl, nwords, 0, count_misplaced(bits, nl));
+    as_partition_swap(refs, bits, nl, nwords, 0, as_partition_misplaced(bits, nl));
     if (bits != stack_bits) free(bits);
     finish_partition(node, s, nl, left, right);
     return node->first + nl;
@@ -880,7 +821,7 @@ static void par_swap(void *user, unsigned c, unsigned n)
     par_part_job *j = user;
     uint32_t k0, k1;
     as_chunk_range(j->misplaced, c, n, &k0, &k1);
-    swap_misplaced(j->refs, j->bits, j->nl, j->nwords, k0, k1);
+    as_partition_swap(j->refs, j->bits, j->nl, j->nwords, k0, k1);
 }
 
 uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bvh_object_split *s, bvh_range *left,
@@ -909,7 +850,7 @@ uint32_t bvh_partition_object_mt(bvh_builder *b, const bvh_range *node, const bv
     uint32_t nl = 0;
     for (unsigned c = 0; c < pieces; ++c) nl += j->part_nl[c];
     j->nl = nl;
-    j->misplaced = count_misplaced(bits, nl);
+    j->misplaced = as_partition_misplaced(bits, nl);
     as_parallel_run(pieces, par_swap, j);
     free(bits);
     free(j);

@@ -9,6 +9,7 @@
 #include "mesh.h"
 #include "bvh2_layout.h"
 #include "simd4.h"
+#include "partition_bits.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
@@ -66,6 +67,7 @@ typedef struct bvh_tmp_node {
     const bvh_ref *refs;   /* leaf references, NULL when count is 0; NULL for an inner node */
 } bvh_tmp_node;
 _Static_assert(sizeof(bvh_tmp_node) == 48, "bvh_tmp_node is 48 bytes");
+_Static_assert(sizeof(bvh_ref) == AS_PARTITION_ITEM_BYTES, "references are partitioned as 32-byte items");
 
 typedef struct bvh_builder {
     const as_build_args_t *args;
