@@ -647,7 +647,7 @@ static void plan_write(void *user, size_t i)
 }
 
 /* Trees of fewer nodes than this are written on one thread. */
-#define FLAT_MT_MIN_NODES 16384
+#define FLAT_MT_MIN_NODES 4096
 
 /* Writes the whole tree (node_count nodes) into f; 0 when the walk's
  * bookkeeping disagrees with the tree. */
@@ -739,7 +739,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
         memset(&init, 0, sizeof init);
         init.mesh = mesh;
         init.refs = b.refs;
-        init.chunks = mesh->triangle_count >= 65536 ? INIT_CHUNKS : 1;
+        init.chunks = mesh->triangle_count >= 8192 ? INIT_CHUNKS : 1;
         uint32_t k = 0;
         for (unsigned ch = 0; ch < init.chunks; ++ch) {
             uint32_t first, end;

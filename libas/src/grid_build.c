@@ -517,10 +517,13 @@ static void free_pairs(grid_pairs *pairs, size_t units)
 /* Below these sizes a pass takes less time than starting the threads for
  * it. At 262,144 triangles and 1,048,576 cells the bunny's bounds pass and
  * prefix sum ran on one thread, 2.2 and 1.4 ms of a 16-thread build of 4 to
- * 7 ms; from these sizes, 0.2 ms each and builds of 2.8 to 3.0 ms (run 124;
- * staircase, 2 to 16 threads, unchanged). */
-#define PARALLEL_MIN_TRIANGLES 32768
-#define PARALLEL_MIN_CELLS (1u << 17)
+ * 7 ms; from 32,768 and 131,072, 0.2 ms each and builds of 2.8 to 3.0 ms
+ * (run 124). Since threads watch for work before they sleep (thread_crew.c)
+ * a step on them costs about 10 us, and staircase2 (30,927 triangles,
+ * 123,708 cells), whose two passes had run on one thread, a tenth of the
+ * work and a third of a 16-thread build, takes them on every thread too. */
+#define PARALLEL_MIN_TRIANGLES 4096
+#define PARALLEL_MIN_CELLS (1u << 14)
 
 #define BOUNDS_CHUNKS 64
 
