@@ -1,4 +1,5 @@
 /* See task_pool.h. */
+#define _GNU_SOURCE /* PTHREAD_MUTEX_ADAPTIVE_NP */
 #include "task_pool.h"
 #include "thread_crew.h"
 
@@ -18,11 +19,17 @@ typedef struct help_job {
     unsigned helpers;   /* pool threads inside the job, under the pool's lock */
 } help_job;
 
+/* Steps published at once: the first levels of a tree have a few big nodes
+ * split at the same time, each with steps for the idle threads (with one
+ * at a time, 16 threads had the others' steps run on their callers alone
+ * while most of them waited: the binned build's first millisecond). */
+#define HELP_MAX 16
+
 struct as_task_pool {
     pthread_mutex_t lock;
     pthread_cond_t wake;
-    pthread_cond_t help_done;   /* a helper left the published job */
-    help_job *help;             /* the published step, or NULL; under the lock */
+    pthread_cond_t help_done;   /* a helper left a published job */
+    help_job *help[HELP_MAX];   /* the published steps (NULL: a free slot); under the lock */
     size_t task_size;
     unsigned char *stack;
     size_t depth, capacity;
@@ -83,11 +90,16 @@ static void help_run(help_job *h)
     }
 }
 
-/* Called with the lock held; returns with it held. */
+/* Called with the lock held; returns with it held. Helps the published
+ * step with indices left that has the fewest helpers. */
 static int help_if_asked(as_task_pool *p)
 {
-    help_job *h = p->help;
-    if (!h || atomic_load_explicit(&h->next, memory_order_relaxed) >= h->n) return 0;
+    help_job *h = NULL;
+    for (unsigned k = 0; k < HELP_MAX; ++k) {
+        help_job *c = p->help[k];
+        if (c && atomic_load_explicit(&c->next, memory_order_relaxed) < c->n && (!h || c->helpers < h->helpers)) h = c;
+    }
+    if (!h) return 0;
     h->helpers++;
     pthread_mutex_unlock(&p->lock);
     help_run(h);
@@ -164,7 +176,18 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
     atomic_init(&p.waiting, 0);
     atomic_init(&p.queued, 0);
     atomic_init(&p.news, 0);
-    if (pthread_mutex_init(&p.lock, NULL) != 0) return 0;
+    /* The lock is held for a few stores at a time, and 16 threads that see
+     * news at once all take it: an adaptive mutex spins a while before it
+     * sleeps, where a plain one made each of them sleep in the kernel and
+     * its holder wake them there. */
+    pthread_mutexattr_t attr;
+    if (pthread_mutexattr_init(&attr) != 0) return 0;
+#if defined(PTHREAD_ADAPTIVE_MUTEX_INITIALIZER_NP)
+    pthread_mutexattr_settype(&attr, PTHREAD_MUTEX_ADAPTIVE_NP);
+#endif
+    const int lock_made = pthread_mutex_init(&p.lock, &attr) == 0;
+    pthread_mutexattr_destroy(&attr);
+    if (!lock_made) return 0;
     if (pthread_cond_init(&p.wake, NULL) != 0) {
         pthread_mutex_destroy(&p.lock);
         return 0;
@@ -203,9 +226,9 @@ static void parallel_crew(void *user, unsigned i)
 
 /* Inside a pool's task: the indices are taken one at a time by this thread
  * and by whichever of the pool's threads are idle or become idle before
- * they are all taken; with none, this thread runs them all. One step is
- * published at a time; another thread's step meanwhile runs on its caller
- * alone. */
+ * they are all taken; with none, this thread runs them all. Up to HELP_MAX
+ * steps are published at a time; another thread's step meanwhile runs on
+ * its caller alone. */
 static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user)
 {
     help_job h;
@@ -215,9 +238,11 @@ static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user,
     atomic_init(&h.next, 0);
     h.helpers = 0;
     pthread_mutex_lock(&p->lock);
-    const int published = p->help == NULL;
+    unsigned slot = 0;
+    while (slot < HELP_MAX && p->help[slot]) ++slot;
+    const int published = slot < HELP_MAX;
     if (published) {
-        p->help = &h;
+        p->help[slot] = &h;
         atomic_fetch_add_explicit(&p->news, 1, memory_order_release);
         if (atomic_load_explicit(&p->waiting, memory_order_relaxed) > 0) pthread_cond_broadcast(&p->wake);
     }
@@ -227,7 +252,7 @@ static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user,
     /* Every index is taken; the job lives in this frame until the helpers
      * that took one have left it. */
     pthread_mutex_lock(&p->lock);
-    p->help = NULL;
+    p->help[slot] = NULL;
     while (h.helpers > 0) pthread_cond_wait(&p->help_done, &p->lock);
     pthread_mutex_unlock(&p->lock);
 }
