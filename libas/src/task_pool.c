@@ -15,8 +15,10 @@ typedef struct help_job {
     void (*fn)(void *user, unsigned i, unsigned n);
     void *user;
     unsigned n;
-    atomic_uint next;   /* the next index not yet taken */
-    unsigned helpers;   /* pool threads inside the job, under the pool's lock */
+    atomic_uint next;       /* the next index not yet taken */
+    atomic_uint helpers;    /* pool threads inside the job */
+    int published;
+    struct as_task_pool *pool;
 } help_job;
 
 /* Steps published at once: the first levels of a tree have a few big nodes
@@ -25,19 +27,25 @@ typedef struct help_job {
  * while most of them waited: the binned build's first millisecond). */
 #define HELP_MAX 16
 
+/* Threads out of work watch three counts without the lock (tasks queued,
+ * published steps with indices left, whether everything is done) and take
+ * the lock only when one says there is something to take: 16 threads that
+ * took it whenever anything changed had spent a fifth of a build's first
+ * millisecond waiting for it. */
 struct as_task_pool {
     pthread_mutex_t lock;
     pthread_cond_t wake;
-    pthread_cond_t help_done;   /* a helper left a published job */
+    pthread_cond_t help_done;   /* a published job's last helper left it */
     help_job *help[HELP_MAX];   /* the published steps (NULL: a free slot); under the lock */
     size_t task_size;
     unsigned char *stack;
     size_t depth, capacity;
-    size_t active;          /* tasks queued or running */
-    atomic_int waiting;     /* threads watching for work or asleep on `wake` */
-    atomic_uint news;       /* under the lock: changed whenever a task is pushed, a step is published or
-                             * the last task ends, for a watching thread to see without the lock */
-    atomic_int queued;      /* depth, readable without the lock */
+    size_t active;              /* tasks queued or running; under the lock */
+    atomic_int waiting;         /* threads watching for work or asleep on `wake` */
+    atomic_int queued;          /* depth, readable without the lock */
+    atomic_int help_open;       /* published steps whose indices are not all taken */
+    atomic_int done;            /* nothing queued, nothing running */
+    atomic_int owners_asleep;   /* owners of steps asleep on help_done */
     as_task_fn run;
     void *user;
 };
@@ -57,9 +65,8 @@ int as_task_pool_push(as_task_pool *p, const void *task)
     }
     memcpy(p->stack + p->depth * p->task_size, task, p->task_size);
     p->depth++;
-    atomic_store_explicit(&p->queued, (int)p->depth, memory_order_relaxed);
+    atomic_store_explicit(&p->queued, (int)p->depth, memory_order_release);
     p->active++;
-    atomic_fetch_add_explicit(&p->news, 1, memory_order_release);
     pthread_cond_signal(&p->wake);
     pthread_mutex_unlock(&p->lock);
     return 1;
@@ -81,46 +88,55 @@ int as_task_pool_hungry(as_task_pool *p) { return as_task_pool_idle(p) > 0; }
  * starting threads of its own, which would outnumber the cores. */
 static _Thread_local as_task_pool *current_pool;
 
+/* Takes indices until none is left; the thread that finds the job's
+ * indices exhausted first takes it off the count of open steps. */
 static void help_run(help_job *h)
 {
     for (;;) {
         const unsigned i = atomic_fetch_add_explicit(&h->next, 1, memory_order_relaxed);
-        if (i >= h->n) return;
+        if (i >= h->n) {
+            if (i == h->n && h->published) atomic_fetch_sub(&h->pool->help_open, 1);
+            return;
+        }
         h->fn(h->user, i, h->n);
     }
 }
 
-/* Called with the lock held; returns with it held. Helps the published
- * step with indices left that has the fewest helpers. */
+/* Helps the published step with indices left that has the fewest helpers;
+ * returns 0 when there is none. Called and returns without the lock. */
 static int help_if_asked(as_task_pool *p)
 {
+    pthread_mutex_lock(&p->lock);
     help_job *h = NULL;
     for (unsigned k = 0; k < HELP_MAX; ++k) {
         help_job *c = p->help[k];
-        if (c && atomic_load_explicit(&c->next, memory_order_relaxed) < c->n && (!h || c->helpers < h->helpers)) h = c;
+        if (c && atomic_load_explicit(&c->next, memory_order_relaxed) < c->n &&
+            (!h || atomic_load_explicit(&c->helpers, memory_order_relaxed) <
+                       atomic_load_explicit(&h->helpers, memory_order_relaxed)))
+            h = c;
     }
-    if (!h) return 0;
-    h->helpers++;
+    /* Joined under the lock: its owner takes it off the list under the lock
+     * before it waits for the helpers to leave. */
+    if (h) atomic_fetch_add(&h->helpers, 1);
     pthread_mutex_unlock(&p->lock);
+    if (!h) return 0;
     help_run(h);
-    pthread_mutex_lock(&p->lock);
-    /* Every owner waiting on help_done wakes and checks its own job: an
-     * owner that cleared its job may still wait while another's is
-     * published, and a signal could wake the wrong one. */
-    if (--h->helpers == 0) pthread_cond_broadcast(&p->help_done);
+    /* h may be gone once the count is 0 (its owner watches it): nothing of
+     * it is read after, and an owner asleep is woken through the pool. */
+    if (atomic_fetch_sub(&h->helpers, 1) == 1 && atomic_load(&p->owners_asleep) > 0) {
+        pthread_mutex_lock(&p->lock);
+        pthread_cond_broadcast(&p->help_done);
+        pthread_mutex_unlock(&p->lock);
+    }
     return 1;
 }
 
-/* What a thread that watches the pool saw last. */
-typedef struct pool_news {
-    as_task_pool *p;
-    unsigned seen;
-} pool_news;
-
-static int news_came(const void *arg)
+static int work_hint(const void *arg)
 {
-    const pool_news *w = arg;
-    return atomic_load_explicit(&w->p->news, memory_order_acquire) != w->seen;
+    const as_task_pool *p = arg;
+    return atomic_load_explicit(&p->queued, memory_order_acquire) > 0 ||
+           atomic_load_explicit(&p->help_open, memory_order_acquire) > 0 ||
+           atomic_load_explicit(&p->done, memory_order_acquire);
 }
 
 static void *worker(void *arg)
@@ -129,32 +145,38 @@ static void *worker(void *arg)
     as_task_pool *outer = current_pool;
     current_pool = p;
     _Alignas(16) unsigned char task[AS_TASK_MAX_SIZE];
-    pthread_mutex_lock(&p->lock);
     for (;;) {
-        while (p->depth == 0 && p->active > 0) {
-            if (help_if_asked(p)) continue;
-            atomic_fetch_add(&p->waiting, 1);
-            /* Watch first (as_spin_until), then sleep. */
-            const pool_news w = {p, atomic_load_explicit(&p->news, memory_order_relaxed)};
-            pthread_mutex_unlock(&p->lock);
-            as_spin_until(news_came, &w);
+        if (atomic_load_explicit(&p->help_open, memory_order_acquire) > 0 && help_if_asked(p)) continue;
+        if (atomic_load_explicit(&p->queued, memory_order_acquire) > 0) {
             pthread_mutex_lock(&p->lock);
-            if (!news_came(&w)) pthread_cond_wait(&p->wake, &p->lock);
-            atomic_fetch_sub(&p->waiting, 1);
+            if (p->depth > 0) {
+                p->depth--;
+                atomic_store_explicit(&p->queued, (int)p->depth, memory_order_release);
+                memcpy(task, p->stack + p->depth * p->task_size, p->task_size);
+                pthread_mutex_unlock(&p->lock);
+                p->run(p, task, p->user);
+                pthread_mutex_lock(&p->lock);
+                if (--p->active == 0) {
+                    atomic_store_explicit(&p->done, 1, memory_order_release);
+                    pthread_cond_broadcast(&p->wake);
+                }
+                pthread_mutex_unlock(&p->lock);
+                continue;
+            }
+            pthread_mutex_unlock(&p->lock);
         }
-        if (p->depth == 0) break; /* nothing queued, nothing running: done */
-        p->depth--;
-        atomic_store_explicit(&p->queued, (int)p->depth, memory_order_relaxed);
-        memcpy(task, p->stack + p->depth * p->task_size, p->task_size);
-        pthread_mutex_unlock(&p->lock);
-        p->run(p, task, p->user);
-        pthread_mutex_lock(&p->lock);
-        if (--p->active == 0) {
-            atomic_fetch_add_explicit(&p->news, 1, memory_order_release);
-            pthread_cond_broadcast(&p->wake);
+        if (atomic_load_explicit(&p->done, memory_order_acquire)) break;
+        /* Watch first (as_spin_until), then sleep; what wakes a sleeper is
+         * changed under the lock before the signal, and looked at here
+         * under the lock before sleeping. */
+        atomic_fetch_add(&p->waiting, 1);
+        if (!as_spin_until(work_hint, p)) {
+            pthread_mutex_lock(&p->lock);
+            while (!work_hint(p)) pthread_cond_wait(&p->wake, &p->lock);
+            pthread_mutex_unlock(&p->lock);
         }
+        atomic_fetch_sub(&p->waiting, 1);
     }
-    pthread_mutex_unlock(&p->lock);
     current_pool = outer;
     return NULL;
 }
@@ -175,11 +197,13 @@ int as_task_pool_run(unsigned threads, size_t task_size, const void *first, as_t
     p.user = user;
     atomic_init(&p.waiting, 0);
     atomic_init(&p.queued, 0);
-    atomic_init(&p.news, 0);
-    /* The lock is held for a few stores at a time, and 16 threads that see
-     * news at once all take it: an adaptive mutex spins a while before it
-     * sleeps, where a plain one made each of them sleep in the kernel and
-     * its holder wake them there. */
+    atomic_init(&p.help_open, 0);
+    atomic_init(&p.done, 0);
+    atomic_init(&p.owners_asleep, 0);
+    /* The lock is held for a few stores at a time, and the threads that
+     * join a new step take it at once: an adaptive mutex spins a while
+     * before it sleeps, where a plain one made each of them sleep in the
+     * kernel and its holder wake them there. */
     pthread_mutexattr_t attr;
     if (pthread_mutexattr_init(&attr) != 0) return 0;
 #if defined(PTHREAD_ADAPTIVE_MUTEX_INITIALIZER_NP)
@@ -229,6 +253,12 @@ static void parallel_crew(void *user, unsigned i)
  * they are all taken; with none, this thread runs them all. Up to HELP_MAX
  * steps are published at a time; another thread's step meanwhile runs on
  * its caller alone. */
+static int helpers_left(const void *arg)
+{
+    const help_job *h = arg;
+    return atomic_load(&h->helpers) == 0;
+}
+
 static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user)
 {
     help_job h;
@@ -236,24 +266,30 @@ static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user,
     h.user = user;
     h.n = n;
     atomic_init(&h.next, 0);
-    h.helpers = 0;
+    atomic_init(&h.helpers, 0);
+    h.pool = p;
     pthread_mutex_lock(&p->lock);
     unsigned slot = 0;
     while (slot < HELP_MAX && p->help[slot]) ++slot;
-    const int published = slot < HELP_MAX;
-    if (published) {
+    h.published = slot < HELP_MAX;
+    if (h.published) {
         p->help[slot] = &h;
-        atomic_fetch_add_explicit(&p->news, 1, memory_order_release);
+        atomic_fetch_add(&p->help_open, 1);
         if (atomic_load_explicit(&p->waiting, memory_order_relaxed) > 0) pthread_cond_broadcast(&p->wake);
     }
     pthread_mutex_unlock(&p->lock);
     help_run(&h);
-    if (!published) return;
+    if (!h.published) return;
     /* Every index is taken; the job lives in this frame until the helpers
-     * that took one have left it. */
+     * that joined it have left. */
     pthread_mutex_lock(&p->lock);
     p->help[slot] = NULL;
-    while (h.helpers > 0) pthread_cond_wait(&p->help_done, &p->lock);
+    pthread_mutex_unlock(&p->lock);
+    if (as_spin_until(helpers_left, &h)) return;
+    pthread_mutex_lock(&p->lock);
+    atomic_fetch_add(&p->owners_asleep, 1);
+    while (atomic_load(&h.helpers) != 0) pthread_cond_wait(&p->help_done, &p->lock);
+    atomic_fetch_sub(&p->owners_asleep, 1);
     pthread_mutex_unlock(&p->lock);
 }
 
