@@ -489,7 +489,8 @@ typedef struct bih_flat {
     uint64_t prim_count;
     uint64_t leaves, empty_leaves;
     uint32_t max_depth;
-    double ci, ct, root_area, sah;
+    double ci, ct, root_area;
+    as_sah_sum sah;
     double *terms;           /* each node's SAH term by pre-order position, or NULL: summed into sah */
     uint64_t term_pos;
 } bih_flat;
@@ -504,7 +505,7 @@ static double flat_term(const bih_flat *f, const bih_tmp *n, const float lo[3], 
 static void flat_add(bih_flat *f, double term)
 {
     if (f->terms) f->terms[f->term_pos++] = term;
-    else f->sah += term;
+    else as_sah_sum_add(&f->sah, term);
 }
 
 /* Writes leaf `n` at d. A leaf's PRIM entries are its objects' place in
@@ -656,12 +657,12 @@ static int flatten_tree(bih_flat *f, uint64_t node_count, uint32_t n, unsigned t
 {
     bih_flat_plan p = {f, 0, NULL, 0, 0, 0};
     if (threads > 1 && node_count >= FLAT_MT_MIN_NODES) {
-        f->terms = malloc(sizeof(double) * node_count);
+        f->terms = as_temp_take(sizeof(double) * node_count, "BIH SAH terms");
         /* About 32 subtrees per thread, so that the last one to finish
          * leaves the others idle for little. */
         p.grain = n / (32 * threads);
         if (!f->terms || !plan_collect(&p, 0)) {
-            free(f->terms);
+            as_temp_give(f->terms);
             f->terms = NULL;
             free(p.tasks);
             p.tasks = NULL;
@@ -683,8 +684,8 @@ static int flatten_tree(bih_flat *f, uint64_t node_count, uint32_t n, unsigned t
         if (k->max_depth > f->max_depth) f->max_depth = k->max_depth;
         ok = !k->bad;
     }
-    for (uint64_t i = 0; ok && i < node_count; ++i) f->sah += f->terms[i];
-    free(f->terms);
+    if (ok) f->sah = as_sah_sum_terms(f->terms, node_count, threads);
+    as_temp_give(f->terms);
     f->terms = NULL;
     free(p.tasks);
     return ok;
@@ -777,7 +778,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     /* No clearing: the walk writes all three fields of every node made
      * (flatten_tree checks that it met them all). */
     bih_flat f = {&b, out, 1, prims, 0, 0, 0, 0, args->cost_intersection, args->cost_traversal,
-                  as_spatial_half_area(mesh->bounds_lo, mesh->bounds_hi), 0.0, NULL, 0};
+                  as_spatial_half_area(mesh->bounds_lo, mesh->bounds_hi), {0.0, 0.0, 0}, NULL, 0};
     if (!flatten_tree(&f, node_count, n, threads, mesh->bounds_lo, mesh->bounds_hi) || f.prim_count != n) {
         as_set_error(AS_ERROR_UNKNOWN, "BIH build bookkeeping: %llu nodes and %llu objects written, %llu and %u made",
                      (unsigned long long)f.out_count, (unsigned long long)f.prim_count,
@@ -797,7 +798,7 @@ as_error_t as_bih_build(const as_mesh_t *mesh, const as_build_args_t *args, as_s
     as_structure_add_kept_section(s, ASF_TAG_PRIM, prims, f.prim_count, sizeof(uint32_t),
                                   sizeof(uint32_t) * (size_t)(n ? n : 1));
     as_spatial_add_tris(s, tris, mesh->triangle_count);
-    s->meta.sah_cost = f.sah;
+    s->meta.sah_cost = as_sah_sum_value(&f.sah);
     s->build_ms = as_now_ms() - t_start;
     as_block_give(b.refs, refs_bytes, 0);
     as_block_give(b.nodes, nodes_bytes, 0);

@@ -24,7 +24,7 @@ double as_bih_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
     const double root_area = as_spatial_half_area(s->meta.bounds_lo, s->meta.bounds_hi);
     bih_walk_entry stack[AS_BIH_MAX_DEPTH + 2];
     int sp = 0;
-    double sah = 0.0;
+    as_sah_sum sah = {0.0, 0.0, 0}; /* node by node in pre-order, as the builder adds them */
     uint64_t depth_sum = 0;
     stack[0].node = 0;
     stack[0].depth = 0;
@@ -38,7 +38,7 @@ double as_bih_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
         const uint32_t axis = n->info & 3u;
         if (axis == AS_BIH_LEAF) {
             const uint32_t count = as_float_as_uint(n->clip[0]);
-            sah += ci * count * rel;
+            as_sah_sum_add(&sah, ci * count * rel);
             if (!st || count == 0) continue;
             st->leaf_count++;
             if (e.depth > st->max_depth) st->max_depth = e.depth;
@@ -47,7 +47,7 @@ double as_bih_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
             st->leaf_size_histogram[count < AS_HISTOGRAM_BINS ? count : AS_HISTOGRAM_BINS - 1]++;
             continue;
         }
-        sah += ct * rel;
+        as_sah_sum_add(&sah, ct * rel);
         if (sp + 2 > AS_BIH_MAX_DEPTH + 2) continue; /* validated trees never get here */
         bih_walk_entry l = e, r = e;
         l.node = n->info >> 2;
@@ -59,7 +59,7 @@ double as_bih_sah_cost(const as_structure_t *s, as_structure_stats_t *st)
         stack[sp++] = l;
     }
     if (st) st->average_leaf_depth = st->leaf_count ? (double)depth_sum / (double)st->leaf_count : 0.0;
-    return sah;
+    return as_sah_sum_value(&sah);
 }
 
 static void bih_stats(const as_structure_t *s, as_structure_stats_t *st)

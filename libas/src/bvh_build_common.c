@@ -476,12 +476,15 @@ bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, c
      * to clear and merge. */
     const uint32_t pieces = bvh_piece_count(count, threads);
     if (threads > pieces) threads = pieces;
-    obj_bins *bins = threads > 1 ? malloc(sizeof(obj_bins) * 2 * threads) : NULL;
+    /* The threads' bins (880 KB for 16) are a build temporary: from
+     * malloc they were fresh pages for every node, as the threads' malloc
+     * arenas gave them back to the system. */
+    obj_bins *bins = threads > 1 ? as_temp_take(sizeof(obj_bins) * 2 * threads, "BVH bins") : NULL;
     if (!bins) return bvh_find_object_split(refs, count, cb2, nb, bins_out);
     bvh_object_split best;
     int use[3];
     if (!object_frame(cb2, nb, &best, use)) {
-        free(bins);
+        as_temp_give(bins);
         return best;
     }
     const float cmin[4] = {best.cmin[0], best.cmin[1], best.cmin[2], 0.0f};
@@ -503,7 +506,7 @@ bvh_object_split bvh_find_object_split_mt(const bvh_ref *refs, uint32_t count, c
     uint64_t occupied[3][BVH_MAX_BINS / 64];
     occupied_from_counts(&bins[0], nb, occupied);
     sweep_object_bins(&bins[0], occupied, use, nb, &best);
-    free(bins);
+    as_temp_give(bins);
     return best;
 }
 
@@ -1125,41 +1128,6 @@ static void walk_tasks(void *user, unsigned i, unsigned n)
     j->part[i].bad = bad;
 }
 
-typedef struct sum_job {
-    const double *terms;
-    uint64_t count;
-    double *block;
-} sum_job;
-
-static void sum_block(void *user, size_t j)
-{
-    const sum_job *job = user;
-    const uint64_t first = (uint64_t)j * AS_SAH_SUM_BLOCK;
-    const uint64_t end = job->count - first < AS_SAH_SUM_BLOCK ? job->count : first + AS_SAH_SUM_BLOCK;
-    double b = 0.0;
-    for (uint64_t i = first; i < end; ++i) b += job->terms[i];
-    job->block[j] = b;
-}
-
-/* The sum as_sah_sum makes of count terms, its blocks on `threads`
- * threads (on one when there is no memory for their sums). */
-static as_sah_sum sum_terms(const double *terms, uint64_t count, unsigned threads)
-{
-    as_sah_sum sum = {0.0, 0.0, 0};
-    const uint64_t blocks = (count + AS_SAH_SUM_BLOCK - 1) / AS_SAH_SUM_BLOCK;
-    double *block = malloc(sizeof(double) * (size_t)(blocks ? blocks : 1));
-    if (!block) {
-        for (uint64_t i = 0; i < count; ++i) as_sah_sum_add(&sum, terms[i]);
-        return sum;
-    }
-    sum_job job = {terms, count, block};
-    as_parallel_for(threads, (size_t)blocks, sum_block, &job);
-    for (uint64_t j = 0; j < blocks; ++j) sum.total += block[j];
-    sum.count = count;
-    free(block);
-    return sum;
-}
-
 /* Trees with fewer inner nodes than this are written by one thread. */
 #define BVH_WALK_MT_MIN_NODES 2048
 
@@ -1200,8 +1168,8 @@ static int write_tree(flatten_state *st, int32_t root, double root_area, unsigne
             if (job.part[i].max_depth > st->max_depth) st->max_depth = job.part[i].max_depth;
             bad |= job.part[i].bad;
         }
-        st->inner_sum = sum_terms(st->inner_terms, inner, threads);
-        st->leaf_sum = sum_terms(st->leaf_terms, (uint64_t)inner + 1, threads);
+        st->inner_sum = as_sah_sum_terms(st->inner_terms, inner, threads);
+        st->leaf_sum = as_sah_sum_terms(st->leaf_terms, (uint64_t)inner + 1, threads);
     }
     as_temp_give(st->inner_terms);
     as_temp_give(st->leaf_terms);

@@ -518,7 +518,8 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
     /* No index without a piece to take (see bvh_find_object_split_mt). */
     const uint32_t pieces = bvh_piece_count(count, threads);
     if (threads > pieces) threads = pieces;
-    spatial_bins one, *many = threads > 1 ? malloc(sizeof(spatial_bins) * 2 * threads) : NULL, *sb = &one;
+    /* A build temporary, as the object bins (bvh_find_object_split_mt). */
+    spatial_bins one, *many = threads > 1 ? as_temp_take(sizeof(spatial_bins) * 2 * threads, "SBVH bins") : NULL, *sb = &one;
     if (many) {
         par_spatial_job j;
         j.b = b;
@@ -551,7 +552,7 @@ static spatial_split find_spatial_split(const sbvh_ctx *ctx, const bvh_ref *refs
         best.nl = sw.left_count;
         best.nr = sw.right_count;
     }
-    free(many);
+    as_temp_give(many);
     return best;
 }
 

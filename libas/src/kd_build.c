@@ -1128,14 +1128,15 @@ typedef struct kd_emit {
     uint32_t *prim;
     uint64_t node_next, prim_next;
     uint32_t leaf_next;
-    double ct, ci, root_area, sah; /* the SAH cost, summed as as_kd_sah_cost sums it */
+    double ct, ci, root_area;
+    as_sah_sum sah;                /* the SAH cost, summed as as_kd_sah_cost sums it */
     double *terms;                 /* or each node's term by its index (pre-order), NULL: summed */
 } kd_emit;
 
 static void emit_term(kd_emit *e, uint64_t me, double term)
 {
     if (e->terms) e->terms[me] = term;
-    else e->sah += term;
+    else as_sah_sum_add(&e->sah, term);
 }
 
 /* The write on several threads. The tree is cut at one depth, chosen so
@@ -1284,9 +1285,9 @@ static int emit_tree(const kd_tmp *root, const float box[6], kd_emit *e, uint64_
         const size_t want = 64 * (size_t)threads;
         p.cut = 1;
         while (p.cut < 24 && parts_at(root, 0, p.cut, want) < want) p.cut++;
-        e->terms = malloc(sizeof(double) * nodes);
+        e->terms = as_temp_take(sizeof(double) * nodes, "KD SAH terms");
         if (!e->terms || !plan_parts(&p, root, 0)) {
-            free(e->terms);
+            as_temp_give(e->terms);
             e->terms = NULL;
         }
     }
@@ -1301,8 +1302,8 @@ static int emit_tree(const kd_tmp *root, const float box[6], kd_emit *e, uint64_
     int ok = p.next == p.count && e->node_next == nodes;
     if (ok) as_parallel_for(threads, p.count, part_emit, &j);
     for (size_t i = 0; ok && i < p.count; ++i) ok = !p.parts[i].bad;
-    for (uint64_t i = 0; ok && i < nodes; ++i) e->sah += e->terms[i];
-    free(e->terms);
+    if (ok) e->sah = as_sah_sum_terms(e->terms, nodes, threads);
+    as_temp_give(e->terms);
     e->terms = NULL;
     free(p.parts);
     return ok;
@@ -1446,7 +1447,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
         return as_get_error();
     }
     kd_emit e = {nodes, prim, 0, 0, 0, args->cost_traversal, args->cost_intersection, as_spatial_half_area(box, box + 3),
-                 0.0, NULL};
+                 {0.0, 0.0, 0}, NULL};
     const int written = emit_tree(root, box, &e, kc.nodes, threads);
     scratch_free_all(&run);
     if (!written || e.prim_next != kc.leaves + kc.refs) {
@@ -1472,7 +1473,7 @@ as_error_t kd_build(const as_mesh_t *mesh, const as_build_args_t *args, const kd
     as_structure_add_section(s, ASF_TAG_KDN8, nodes, kc.nodes, sizeof(as_kd_node_t));
     as_structure_add_section(s, ASF_TAG_PRIM, prim, kc.leaves + kc.refs, sizeof(uint32_t));
     as_spatial_add_tris(s, tris, mesh->triangle_count);
-    s->meta.sah_cost = e.sah;
+    s->meta.sah_cost = as_sah_sum_value(&e.sah);
     if (args->layout == AS_LAYOUT_KD_ROPES) {
         const as_error_t err = as_kd_add_ropes(s);
         if (err != AS_OK) return err;

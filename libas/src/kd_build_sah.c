@@ -456,11 +456,11 @@ static int sah_root_events_radix(const kd_ref *refs, uint32_t n, unsigned thread
     r.chunks = threads > 64 ? 64 : threads;
     uint64_t *scratch = as_temp_take(sizeof(uint64_t) * 3 * 2 * (size_t)n, "KD root events");
     r.made = malloc(sizeof(size_t) * 3 * r.chunks);
-    r.count = malloc(sizeof(uint32_t) * 3 * r.chunks * ROOT_RADIX_BUCKETS);
+    r.count = as_temp_take(sizeof(uint32_t) * 3 * r.chunks * ROOT_RADIX_BUCKETS, "KD root radix counts");
     if (!scratch || !r.made || !r.count) {
         as_temp_give(scratch);
         free(r.made);
-        free(r.count);
+        as_temp_give(r.count);
         return 0;
     }
     /* Pass 0 makes the events in the scratch and moves them to the list;
@@ -487,7 +487,7 @@ static int sah_root_events_radix(const kd_ref *refs, uint32_t n, unsigned thread
     }
     as_temp_give(scratch);
     free(r.made);
-    free(r.count);
+    as_temp_give(r.count);
     return 1;
 }
 

@@ -36,7 +36,7 @@ static double kd_walk(const as_structure_t *s, as_structure_stats_t *st)
     memcpy(stack[0].box, s->meta.bounds_lo, sizeof(float) * 3);
     memcpy(stack[0].box + 3, s->meta.bounds_hi, sizeof(float) * 3);
     const double root_area = half_area(stack[0].box);
-    double sah = 0.0;
+    as_sah_sum sah = {0.0, 0.0, 0}; /* node by node in pre-order, as the builder adds them */
     uint64_t depth_sum = 0, leaves = 0;
     while (sp > 0) {
         --sp;
@@ -47,7 +47,7 @@ static double kd_walk(const as_structure_t *s, as_structure_stats_t *st)
         const as_kd_node_t n = nodes[ni];
         if (as_kd_is_leaf(n.word1)) {
             const uint32_t cnt = prim[n.word0];
-            sah += ci * cnt * ratio;
+            as_sah_sum_add(&sah, ci * cnt * ratio);
             if (!st) continue;
             if (depth > st->max_depth) st->max_depth = depth;
             if (cnt == 0) continue;
@@ -57,7 +57,7 @@ static double kd_walk(const as_structure_t *s, as_structure_stats_t *st)
             st->leaf_size_histogram[cnt < AS_HISTOGRAM_BINS ? cnt : AS_HISTOGRAM_BINS - 1]++;
             continue;
         }
-        sah += ct * ratio;
+        as_sah_sum_add(&sah, ct * ratio);
         const int axis = (int)(n.word1 & 3u);
         const float split = as_uint_as_float(n.word0);
         if (sp + 2 > AS_KD_MAX_DEPTH + 2) continue;
@@ -76,7 +76,7 @@ static double kd_walk(const as_structure_t *s, as_structure_stats_t *st)
         st->leaf_count = leaves;
         st->average_leaf_depth = leaves ? (double)depth_sum / (double)leaves : 0.0;
     }
-    return sah;
+    return as_sah_sum_value(&sah);
 }
 
 double as_kd_sah_cost(const as_structure_t *s) { return kd_walk(s, NULL); }

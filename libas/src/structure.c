@@ -232,6 +232,39 @@ size_t as_release_cached_memory(void)
     return freed + temp_bytes;
 }
 
+typedef struct sah_sum_job {
+    const double *terms;
+    uint64_t count;
+    double *block;
+} sah_sum_job;
+
+static void sah_sum_block(void *user, size_t j)
+{
+    const sah_sum_job *job = user;
+    const uint64_t first = (uint64_t)j * AS_SAH_SUM_BLOCK;
+    const uint64_t end = job->count - first < AS_SAH_SUM_BLOCK ? job->count : first + AS_SAH_SUM_BLOCK;
+    double b = 0.0;
+    for (uint64_t i = first; i < end; ++i) b += job->terms[i];
+    job->block[j] = b;
+}
+
+as_sah_sum as_sah_sum_terms(const double *terms, uint64_t count, unsigned threads)
+{
+    as_sah_sum sum = {0.0, 0.0, 0};
+    const uint64_t blocks = (count + AS_SAH_SUM_BLOCK - 1) / AS_SAH_SUM_BLOCK;
+    double *block = malloc(sizeof(double) * (size_t)(blocks ? blocks : 1));
+    if (!block) {
+        for (uint64_t i = 0; i < count; ++i) as_sah_sum_add(&sum, terms[i]);
+        return sum;
+    }
+    sah_sum_job job = {terms, count, block};
+    as_parallel_for(threads, (size_t)blocks, sah_sum_block, &job);
+    for (uint64_t j = 0; j < blocks; ++j) sum.total += block[j];
+    sum.count = count;
+    free(block);
+    return sum;
+}
+
 void *as_aligned_alloc(size_t bytes, const char *what)
 {
     if (bytes >= AS_BLOCK_MIN_BYTES) return as_block_take(bytes, 1, what);

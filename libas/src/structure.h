@@ -200,7 +200,7 @@ double as_bvh2_sah_cost(const as_structure_t *s);
  * count (root_area 0: every area counts 1). */
 double as_bvh2_sah_from_sums(double ct, double ci, double root_area, double inner_area, double leaf_area_count,
                              uint64_t inner_count, uint64_t ref_count);
-/* A BVH2's SAH sums: its terms in pre-order, added in blocks of
+/* SAH sums (a BVH2's, a KD tree's, a BIH's): their terms in pre-order, added in blocks of
  * AS_SAH_SUM_BLOCK (each block summed from zero, then the blocks' sums in
  * order), so that a builder writing the tree on several threads can sum
  * the blocks on several threads too and get the bits one walk gets. */
@@ -218,6 +218,9 @@ static inline void as_sah_sum_add(as_sah_sum *s, double term)
     }
 }
 static inline double as_sah_sum_value(const as_sah_sum *s) { return s->total + s->block; }
+/* The as_sah_sum of count terms, its blocks added on up to `threads`
+ * threads (on this one when there is no memory for the blocks' sums). */
+as_sah_sum as_sah_sum_terms(const double *terms, uint64_t count, unsigned threads);
 /* Half the surface area of a box, in double; 0 for an inverted box. */
 static inline double as_half_area6(float lox, float hix, float loy, float hiy, float loz, float hiz)
 {
