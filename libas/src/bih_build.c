@@ -34,8 +34,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* A right child of this many objects or more goes to a waiting thread. */
-#define PARALLEL_MIN_PRIMS 4096
+/* A right child of this many objects or more goes to a waiting thread:
+ * with 4,096, a scene of 30,000 triangles made about 8 such subtrees, and
+ * 16 threads built its tree at 4 or 5 at a time while the others slept. */
+#define PARALLEL_MIN_PRIMS 1024
 /* Leaves report the build's progress in steps of this share of it, not one
  * by one on a counter that every thread writes. */
 #define REPORT_STEPS 1024

@@ -342,8 +342,10 @@ static void grid_unit_pass(void *user, size_t unit)
  * triangles), so one thread did that much of the pass while the others
  * had finished. Units follow the triangle order, and a slab's cells are
  * its triangle's, each once: the pairs per cell come out in the order of
- * fixed blocks, and so PRIM. */
-#define UNIT_CELLS 16384
+ * fixed blocks, and so PRIM. Units of up to 16,384 cells took up to 1.5 ms
+ * each on staircase2, where 16 threads spent half the pass waiting for the
+ * few that held its large triangles. */
+#define UNIT_CELLS 2048
 #define GRID_SPLIT_MIN_THREADS 4
 #define SLABS_MAX 64
 /* Units reach at least total / (UNIT_SHARE x threads) cells: a scene of
