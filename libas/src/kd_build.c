@@ -996,11 +996,24 @@ static void partition_fill_chunks(kd_partition *p)
 /* Builds the subtree of task t: recurses into the left child and loops on
  * the right one, and hands the right child to an idle thread when it is big
  * enough to be worth it. */
+/* Hands the oldest right child this task has not started to a waiting
+ * thread, if one waits: a right child kept because no thread waited when
+ * its parent split used to be built by this thread after the left subtree,
+ * while the threads that ran out of work meanwhile slept (the last
+ * millisecond of a 16-thread build on a few threads). */
+static void offer_pending(as_task_pool *pool, kd_scratch *sc)
+{
+    if (!pool || sc->pending_next == sc->pending_n || !as_task_pool_hungry(pool)) return;
+    const unsigned k = sc->pending_next++;
+    sc->pending_given[k] = (unsigned char)as_task_pool_push(pool, sc->pending[k]);
+}
+
 static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_task t)
 {
     const kd_ctx *c = run->c;
     const kd_builder_ops *ops = c->ops;
     for (;;) {
+        offer_pending(pool, sc);
         kd_ref *const refs = t.refs;
         const uint32_t n = t.n;
         const float *const box = t.box;
@@ -1093,7 +1106,21 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             t = lt;
             continue;
         }
+        /* Kept: offered again while the left subtree is built. */
+        const int pend = pool && nr >= PARALLEL_MIN_REFS && sc->pending_n < KD_PENDING_MAX;
+        const unsigned me = sc->pending_n;
+        if (pend) {
+            sc->pending[me] = &rt;
+            sc->pending_given[me] = 0;
+            sc->pending_n++;
+        }
         build_subtree(pool, run, sc, lt);
+        if (pend) {
+            const int given = sc->pending_next > me && sc->pending_given[me];
+            sc->pending_n = me;
+            if (sc->pending_next > me) sc->pending_next = me;
+            if (given) return;
+        }
         t = rt;
     }
 }

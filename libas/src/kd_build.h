@@ -56,6 +56,9 @@ typedef int (*kd_choose_fn)(const struct kd_ctx *c, void *state, const kd_ref *r
 #define KD_KEEP_BIT(side, axis, hi) (1u << ((side) * 6 + (axis) * 2 + (hi)))
 #define KD_KEEP_SIDE(side) (0x3fu << ((side) * 6))
 
+/* A task's recursion is no deeper than the depth cap. */
+#define KD_PENDING_MAX (AS_KD_MAX_DEPTH + 1)
+
 typedef struct kd_scratch {
     uint16_t *side;
     uint32_t *clipped[2];
@@ -74,6 +77,12 @@ typedef struct kd_scratch {
      * reported: reported in steps (kd_build.c), not leaf by leaf under the
      * run's lock. */
     double unreported;
+    /* The driver's: the right children that the task using this scratch
+     * has not started (tasks in its recursion's frames, oldest first), and
+     * whether each went to a waiting thread. */
+    void *pending[KD_PENDING_MAX];
+    unsigned char pending_given[KD_PENDING_MAX];
+    unsigned pending_n, pending_next;
 } kd_scratch;
 
 /* buf with room for `bytes` (its contents are not kept); NULL when out of
