@@ -299,6 +299,16 @@ static void import_refuses_unreadable_header_count_and_glued_corners(void)
     check_refused("off_face_number_left_over.off", AS_ERROR_PARSE, "cannot parse as OFF");
 }
 
+/* An OBJ face corner is its whole word: a NUL byte inside it had ended the
+ * number early and the rest was dropped without a word; a number beyond 64
+ * bits had saturated. Both are refused where they stand. */
+static void import_refuses_obj_corner_that_is_not_a_whole_number(void)
+{
+    check_refused("obj_corner_with_nul.obj", AS_ERROR_PARSE, "line 4: cannot parse face corner '3?x9'");
+    check_refused("obj_corner_overflow.obj", AS_ERROR_PARSE,
+                  "line 4: cannot parse face corner '99999999999999999999'");
+}
+
 /* A PLY body is read number by number, across lines, as the format says:
  * one number too many on a vertex line makes the next number a face's
  * corner count. OpenMesh's reader would push 200 million corners past the
@@ -648,6 +658,7 @@ int main(int argc, char **argv)
     RUN_TEST(import_refuses_file_without_triangles);
     RUN_TEST(import_refuses_garbage_ply_header);
     RUN_TEST(import_refuses_unreadable_header_count_and_glued_corners);
+    RUN_TEST(import_refuses_obj_corner_that_is_not_a_whole_number);
     RUN_TEST(import_refuses_truncated_binary_ply);
     RUN_TEST(import_refuses_ply_whose_numbers_do_not_add_up);
     RUN_TEST(import_refuses_ply_lists_it_cannot_read);

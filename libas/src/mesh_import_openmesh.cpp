@@ -282,11 +282,19 @@ bool obj_scan(const char *data, size_t size, const char *name, ObjScan &scan)
                 while (t_end < end && !is_blank(data[t_end])) ++t_end;
                 token.assign(data + q, t_end - q);
                 q = t_end;
+                /* The whole number (a NUL inside the word would end
+                 * strtoll's reading early), up to a '/' before texture and
+                 * normal indices, and within range. */
                 char *after;
+                errno = 0;
                 const long long v = std::strtoll(token.c_str(), &after, 10);
-                if (after == token.c_str() || (*after != '\0' && *after != '/') || v == 0) {
+                const bool whole = after == token.c_str() + token.size() || *after == '/';
+                if (after == token.c_str() || !whole || errno == ERANGE || v == 0) {
+                    std::string shown(token);
+                    for (char &ch : shown)
+                        if (!std::isprint((unsigned char)ch)) ch = '?';
                     as_set_error(AS_ERROR_PARSE, "%s: line %u: cannot parse face corner '%s'",
-                                 name, line, token.c_str());
+                                 name, line, shown.c_str());
                     return false;
                 }
                 /* OBJ counts from 1; negative indices count back from the
