@@ -3,12 +3,20 @@
  * the built structure is never larger than structure_bytes_max, and the
  * bound is not absurd; the build estimate grows with the mesh and covers the
  * result; arguments the builders refuse are refused; the memory builds
- * keep for the next one can be freed. */
+ * keep for the next one can be freed, and a process that forks while
+ * another thread uses it leaves the child able to use it. */
+#define _GNU_SOURCE /* nanosleep, fork */
 #include "reference.h"
 #include "test_util.h"
 #include "structure.h"
 
 #include <math.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdatomic.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 
 /* The most the KD and octree bounds may exceed the bunny's built bytes:
  * their inner nodes are bounded level by level up to the depth cap. */
@@ -275,6 +283,61 @@ static void build_temporaries_are_kept_by_size_class(void)
     CHECK_EQ_U64(as_release_cached_memory(), 0);
 }
 
+/* A thread that takes and gives back kept memory until told to stop: the
+ * caches' locks are held often while it runs. */
+static atomic_int churn_stop;
+
+static void *churn_caches(void *arg)
+{
+    (void)arg;
+    while (!atomic_load(&churn_stop)) {
+        as_temp_give(as_temp_take(100 << 10, "a test"));
+        as_block_give(as_block_take((size_t)2 << 20, 0, "a test"), (size_t)2 << 20, 0);
+    }
+    return NULL;
+}
+
+/* Forks while another thread takes and gives kept memory; each child takes
+ * and gives some itself. A child forked while the other thread held a
+ * cache's lock would wait for it for ever. */
+static void a_child_forked_while_the_caches_are_in_use_can_use_them(void)
+{
+    atomic_store(&churn_stop, 0);
+    pthread_t t;
+    CHECK(pthread_create(&t, NULL, churn_caches, NULL) == 0);
+    int stuck = 0, failed = 0;
+    for (int k = 0; k < 40; ++k) {
+        const pid_t pid = fork();
+        if (pid == 0) {
+            void *p = as_temp_take(100 << 10, "a test");
+            void *q = as_block_take((size_t)2 << 20, 0, "a test");
+            as_temp_give(p);
+            as_block_give(q, (size_t)2 << 20, 0);
+            _exit(p && q ? 0 : 1);
+        }
+        if (pid < 0) {
+            failed++;
+            continue;
+        }
+        int status = 0, waited = 0;
+        for (int i = 0; i < 2000 && !waited; ++i) { /* 10 s */
+            waited = waitpid(pid, &status, WNOHANG) == pid;
+            if (!waited) nanosleep(&(struct timespec){0, 5000000}, NULL);
+        }
+        if (!waited) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &status, 0);
+            stuck++;
+        } else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+            failed++;
+        }
+    }
+    atomic_store(&churn_stop, 1);
+    pthread_join(t, NULL);
+    if (stuck || failed) fprintf(stderr, "  %d of 40 children stuck, %d failed\n", stuck, failed);
+    CHECK(stuck == 0 && failed == 0);
+}
+
 int main(void)
 {
     RUN_TEST(built_structures_stay_within_the_bound);
@@ -282,5 +345,6 @@ int main(void)
     RUN_TEST(refused_arguments_are_refused);
     RUN_TEST(released_structures_leave_memory_that_can_be_freed);
     RUN_TEST(build_temporaries_are_kept_by_size_class);
+    RUN_TEST(a_child_forked_while_the_caches_are_in_use_can_use_them);
     TEST_EXIT();
 }

@@ -71,8 +71,11 @@ static struct {
     size_t total;
 } kept = {PTHREAD_MUTEX_INITIALIZER, {{NULL, 0, 0}}, 0, 0};
 
+static void caches_fork_init(void);
+
 void *as_block_take(size_t bytes, int huge, const char *what)
 {
+    caches_fork_init();
     if (!bytes) bytes = 1;
     void *p = NULL;
     if (bytes >= AS_BLOCK_MIN_BYTES) {
@@ -158,6 +161,7 @@ static unsigned temp_class(size_t bytes)
 
 void *as_temp_take(size_t bytes, const char *what)
 {
+    caches_fork_init();
     unsigned char *p = NULL;
     unsigned got = 0;
     if (bytes + AS_TEMP_HEADER < ((size_t)1 << AS_TEMP_MIN_CLASS)) {
@@ -204,6 +208,27 @@ void as_temp_give(void *block)
     pthread_mutex_unlock(&temps.lock);
     free(p);
 }
+
+/* A fork while another thread holds a cache's lock would leave the
+ * child's next build waiting for ever: both locks are taken around the
+ * fork, so the child starts with consistent lists and free locks. */
+static void caches_before_fork(void)
+{
+    pthread_mutex_lock(&kept.lock);
+    pthread_mutex_lock(&temps.lock);
+}
+
+static void caches_after_fork(void)
+{
+    pthread_mutex_unlock(&temps.lock);
+    pthread_mutex_unlock(&kept.lock);
+}
+
+static pthread_once_t caches_fork_once = PTHREAD_ONCE_INIT;
+
+static void caches_fork_register(void) { pthread_atfork(caches_before_fork, caches_after_fork, caches_after_fork); }
+
+static void caches_fork_init(void) { pthread_once(&caches_fork_once, caches_fork_register); }
 
 size_t as_release_cached_memory(void)
 {

@@ -15,7 +15,9 @@
  * use.
  * Builds and CPU work run on threads the library keeps from one call to the
  * next (at most twice the cores, 32 at least, wait between calls); they
- * block every signal, and they leave when the library is unloaded.
+ * block every signal, and they leave when the library is unloaded. A child
+ * of fork() starts threads of its own, and the build memory it inherits is
+ * consistent even when another thread was building at the fork.
  */
 #ifndef AS_AS_H
 #define AS_AS_H
