@@ -88,16 +88,16 @@ int as_task_pool_hungry(as_task_pool *p) { return as_task_pool_idle(p) > 0; }
  * starting threads of its own, which would outnumber the cores. */
 static _Thread_local as_task_pool *current_pool;
 
-/* Takes indices until none is left; the thread that finds the job's
- * indices exhausted first takes it off the count of open steps. */
+/* Takes indices until none is left; the thread that takes the last one
+ * takes the job off the count of open steps before it runs it, so that
+ * threads out of work do not take the pool's lock again and again for a
+ * job whose indices are all running. */
 static void help_run(help_job *h)
 {
     for (;;) {
         const unsigned i = atomic_fetch_add_explicit(&h->next, 1, memory_order_relaxed);
-        if (i >= h->n) {
-            if (i == h->n && h->published) atomic_fetch_sub(&h->pool->help_open, 1);
-            return;
-        }
+        if (i >= h->n) return;
+        if (i == h->n - 1 && h->published) atomic_fetch_sub(&h->pool->help_open, 1);
         h->fn(h->user, i, h->n);
     }
 }
