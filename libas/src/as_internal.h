@@ -59,9 +59,6 @@ static inline void as_chunk_range(uint32_t total, unsigned i, unsigned n, uint32
     *end = (uint32_t)((uint64_t)total * (i + 1) / n);
 }
 
-/* The next float towards -inf / +inf of a float that is not NaN
- * (nextafterf without the library call, which showed in builders'
- * profiles): +inf steps down to FLT_MAX, -inf up to -FLT_MAX. */
 /* Set bits of x. The build targets x86-64 without POPCNT, where
  * __builtin_popcountll is a call into libgcc's table loop (1.5% of a
  * 16-thread binned build's samples, in its partition); these dozen
@@ -78,6 +75,9 @@ static inline uint32_t as_popcount64(uint64_t x)
 #endif
 }
 
+/* The next float towards -inf / +inf of a float that is not NaN
+ * (nextafterf without the library call, which showed in builders'
+ * profiles): +inf steps down to FLT_MAX, -inf up to -FLT_MAX. */
 static inline float as_float_next_down(float f)
 {
     uint32_t u;

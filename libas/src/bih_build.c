@@ -103,19 +103,10 @@ static void report(bih_builder *b, uint64_t prims)
 #define NODE_CHUNK 64
 #define MAX_SHARED_TASKS 1024
 
-/* A task's recursion is no deeper than the depth cap. */
-#define PENDING_MAX (AS_BIH_MAX_DEPTH + 1)
-
-typedef struct bih_task bih_task;
-
 typedef struct bih_local {
     uint64_t count, step;
     uint64_t chunk_next, chunk_end, used;
-    /* The right children this task has not started (in its recursion's
-     * frames, oldest first), and whether each went to a waiting thread. */
-    const bih_task *pending[PENDING_MAX];
-    unsigned char pending_given[PENDING_MAX];
-    unsigned pending_n, pending_next;
+    as_pending_stack pending;   /* the right children this task has not started (task_pool.h) */
 } bih_local;
 
 /* Two adjacent nodes from the task's chunk; -1 when the array is full,
@@ -154,11 +145,11 @@ typedef struct bih_boxes {
     float clo[3], chi[3];
 } bih_boxes;
 
-struct bih_task {
+typedef struct bih_task {
     int32_t node;
     uint32_t first, count, depth;
     bih_boxes boxes;
-};
+} bih_task;
 
 static void build_node(as_task_pool *pool, bih_builder *b, bih_local *u, int32_t node, uint32_t first,
                        uint32_t count, uint32_t depth, const bih_boxes *in);
@@ -342,15 +333,11 @@ static __attribute__((noinline)) uint32_t partition_pieces(bih_ref *refs, uint32
 }
 
 /* Hands the oldest right child this task has not started to a waiting
- * thread, if one waits (as the KD and BVH builders do): one kept because
- * no thread waited when its parent split was otherwise built after the
- * left subtree, while the threads that ran out of work slept. */
+ * thread, if one waits (task_pool.h), within the shared-task cap. */
 static void offer_pending(as_task_pool *pool, bih_builder *b, bih_local *u)
 {
-    if (!pool || u->pending_next == u->pending_n || !as_task_pool_hungry(pool)) return;
-    const unsigned k = u->pending_next++;
-    u->pending_given[k] = (unsigned char)(atomic_fetch_add(&b->shared_tasks, 1) < MAX_SHARED_TASKS &&
-                                          as_task_pool_push(pool, u->pending[k]));
+    as_pending *p = as_pending_next_offer(pool, &u->pending);
+    if (p) p->given = atomic_fetch_add(&b->shared_tasks, 1) < MAX_SHARED_TASKS && as_task_pool_push(pool, p->task);
 }
 
 static void build_node(as_task_pool *pool, bih_builder *b, bih_local *u, int32_t node, uint32_t first,
@@ -452,21 +439,11 @@ static void build_node(as_task_pool *pool, bih_builder *b, bih_local *u, int32_t
     const int shared = pool && rcount >= PARALLEL_MIN_PRIMS && as_task_pool_hungry(pool) &&
                        atomic_fetch_add(&b->shared_tasks, 1) < MAX_SHARED_TASKS && as_task_pool_push(pool, &right);
     /* Kept: offered again while the left subtree is built. */
-    const unsigned me = u->pending_n;
-    const int pend = !shared && pool && rcount >= PARALLEL_MIN_PRIMS && me < PENDING_MAX;
-    if (pend) {
-        u->pending[me] = &right;
-        u->pending_given[me] = 0;
-        u->pending_n++;
-    }
+    as_pending rp = {&right, 0};
+    const int tracked = !shared && pool && rcount >= PARALLEL_MIN_PRIMS && as_pending_push(&u->pending, &rp);
     build_node(pool, b, u, (int32_t)l, first, lcount, depth + 1, &lb);
-    if (pend) {
-        const int given = u->pending_next > me && u->pending_given[me];
-        u->pending_n = me;
-        if (u->pending_next > me) u->pending_next = me;
-        if (given) return;
-    }
-    if (!shared) build_node(pool, b, u, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
+    if (tracked) as_pending_pop(&u->pending);
+    if (!shared && !rp.given) build_node(pool, b, u, (int32_t)l + 1, mid, rcount, depth + 1, &rb);
 }
 
 #define INIT_CHUNKS 64

@@ -598,11 +598,10 @@ unsigned bvh_split_threads(const bvh_builder *b, uint32_t count)
     return count < BVH_SPLIT_MT_MIN_PRIMS ? 1 : b->root_threads;
 }
 
-void bvh_pending_offer(bvh_builder *b, as_task_pool *pool, bvh_pending_stack *s)
+void bvh_pending_offer(bvh_builder *b, as_task_pool *pool, as_pending_stack *s)
 {
-    if (s->next == s->n || !pool || !as_task_pool_hungry(pool)) return;
-    bvh_pending *p = s->e[s->next++];
-    p->given = bvh_share_task(b, pool, p->task);
+    as_pending *p = as_pending_next_offer(pool, s);
+    if (p) p->given = bvh_share_task(b, pool, p->task);
 }
 
 
@@ -876,7 +875,7 @@ typedef struct inplace_ctx {
  * yet started to a thread that waits for work (bvh_pending_offer), and
  * records the subtree's size once both children are done (the recursion is
  * no deeper than the depth cap). */
-static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, bvh_pending_stack *pend,
+static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_local *loc, as_pending_stack *pend,
                             const inplace_task *t)
 {
     bvh_builder *b = ctx->b;
@@ -899,10 +898,10 @@ static void inplace_subtree(as_task_pool *pool, const inplace_ctx *ctx, bvh_loca
     }
     bvh_make_inner(b, t->node, ln, rn);
     const inplace_task lt = {l, ln, t->depth + 1}, rt = {r, rn, t->depth + 1};
-    bvh_pending rp = {&rt, 0};
-    const int tracked = pool && rt.range.count >= BVH_SHARE_MIN_PRIMS && bvh_pending_push(pend, &rp);
+    as_pending rp = {&rt, 0};
+    const int tracked = pool && rt.range.count >= BVH_SHARE_MIN_PRIMS && as_pending_push(pend, &rp);
     inplace_subtree(pool, ctx, loc, pend, &lt);
-    if (tracked) bvh_pending_pop(pend);
+    if (tracked) as_pending_pop(pend);
     if (!rp.given) inplace_subtree(pool, ctx, loc, pend, &rt);
     bvh_node_complete(b, t->node, rp.given);
 }
@@ -914,8 +913,8 @@ static void inplace_run(as_task_pool *pool, void *task, void *user)
     memcpy(&t, task, sizeof t);
     bvh_local loc;
     bvh_local_init(&loc, ctx->b);
-    bvh_pending_stack pend;
-    bvh_pending_init(&pend);
+    as_pending_stack pend;
+    as_pending_init(&pend);
     inplace_subtree(pool, ctx, &loc, &pend, &t);
     bvh_local_flush(&loc);
 }

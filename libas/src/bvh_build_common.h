@@ -10,6 +10,7 @@
 #include "bvh2_layout.h"
 #include "simd4.h"
 #include "partition_bits.h"
+#include "task_pool.h"
 
 #include <pthread.h>
 #include <stdatomic.h>
@@ -136,45 +137,9 @@ void bvh_local_flush(bvh_local *l);
 struct as_task_pool;
 int bvh_share_task(bvh_builder *b, struct as_task_pool *pool, const void *task);
 
-/* The large right children a task has split off and not started yet, on
- * its path from its root, oldest (highest in the tree, so largest) first.
- * Whenever a thread of the pool waits for work, the task hands it the
- * oldest of them at its next node (bvh_pending_offer). Offering only the
- * child of the node being split at that moment left the waiting thread idle
- * until the task's depth-first walk reached a new node of at least
- * BVH_PARALLEL_MIN_PRIMS references: bathroom, binned SAH, two threads, a
- * thread waited 2-4 ms at a time, 15-25 ms per build. The stack is the
- * task's own (no lock); a given child is built by the task that takes it,
- * and its parent's subtree size is completed after the build, as for any
- * shared task. */
-typedef struct bvh_pending {
-    const void *task;   /* the child's task struct, in the caller's frame */
-    int given;          /* 1 once pushed to the pool */
-} bvh_pending;
-
-typedef struct bvh_pending_stack {
-    bvh_pending *e[AS_BVH2_MAX_DEPTH];
-    uint32_t n;      /* entries */
-    uint32_t next;   /* entries below it are given (or were refused) */
-} bvh_pending_stack;
-
-static inline void bvh_pending_init(bvh_pending_stack *s) { s->n = s->next = 0; }
-/* Records p (not given); 0 when the stack is full (then p is the caller's). */
-static inline int bvh_pending_push(bvh_pending_stack *s, bvh_pending *p)
-{
-    p->given = 0;
-    if (s->n == AS_BVH2_MAX_DEPTH) return 0;
-    s->e[s->n++] = p;
-    return 1;
-}
-/* Removes the newest entry, before its owner builds it (unless given). */
-static inline void bvh_pending_pop(bvh_pending_stack *s)
-{
-    s->n--;
-    if (s->next > s->n) s->next = s->n;
-}
-/* When a thread of the pool waits for work, shares the oldest entry. */
-void bvh_pending_offer(bvh_builder *b, struct as_task_pool *pool, bvh_pending_stack *s);
+/* When a thread of the pool waits for work, shares the oldest entry
+ * (task_pool.h) within the shared-task cap. */
+void bvh_pending_offer(bvh_builder *b, struct as_task_pool *pool, as_pending_stack *s);
 /* How many threads may split a node of `count` references together: 1
  * below BVH_SPLIT_MT_MIN_PRIMS, where threads would cost more than they
  * save, else every build thread. Inside the builders' pool that asks for no

@@ -987,7 +987,7 @@ static void sbvh_leaf(bvh_local *loc, sbvh_mem *m, const sbvh_task *t)
  * takes it) to a thread that waits for work (bvh_pending_offer), and
  * records the subtree's size once both children are done (the recursion is
  * no deeper than the depth cap). */
-static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pending_stack *pend, const sbvh_task *t)
+static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, as_pending_stack *pend, const sbvh_task *t)
 {
     bvh_builder *b = t->ctx->b;
     bvh_pending_offer(b, pool, pend);
@@ -1034,10 +1034,10 @@ static void sbvh_subtree(as_task_pool *pool, bvh_local *loc, sbvh_mem *m, bvh_pe
      * here once both subtrees are done. */
     const sbvh_task lt = {t->ctx, l, sd.l, sd.nl, sd.owned, sd.lcap, lbudget, t->depth + 1, sd.centroids, sd.lcbox};
     const sbvh_task rt = {t->ctx, r, sd.r, sd.nr, sd.owned, sd.rcap, rbudget, t->depth + 1, sd.centroids, sd.rcbox};
-    bvh_pending rp = {&rt, 0};
-    const int tracked = pool && sd.owned && rt.count >= SBVH_SHARE_MIN_PRIMS && bvh_pending_push(pend, &rp);
+    as_pending rp = {&rt, 0};
+    const int tracked = pool && sd.owned && rt.count >= SBVH_SHARE_MIN_PRIMS && as_pending_push(pend, &rp);
     sbvh_subtree(pool, loc, m, pend, &lt);
-    if (tracked) bvh_pending_pop(pend);
+    if (tracked) as_pending_pop(pend);
     if (!rp.given) sbvh_subtree(pool, loc, m, pend, &rt);
     if (!sd.owned) m->arena_top = sd.arena_mark;
     bvh_node_complete(b, t->node, rp.given);
@@ -1051,8 +1051,8 @@ static void sbvh_run(as_task_pool *pool, void *task, void *user)
     bvh_local loc;
     bvh_local_init(&loc, t.ctx->b);
     sbvh_mem *m = mem_acquire(t.ctx);
-    bvh_pending_stack pend;
-    bvh_pending_init(&pend);
+    as_pending_stack pend;
+    as_pending_init(&pend);
     sbvh_subtree(pool, &loc, m, &pend, &t);
     mem_release(t.ctx, m);
     bvh_local_flush(&loc);

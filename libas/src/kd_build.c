@@ -997,15 +997,11 @@ static void partition_fill_chunks(kd_partition *p)
  * the right one, and hands the right child to an idle thread when it is big
  * enough to be worth it. */
 /* Hands the oldest right child this task has not started to a waiting
- * thread, if one waits: a right child kept because no thread waited when
- * its parent split used to be built by this thread after the left subtree,
- * while the threads that ran out of work meanwhile slept (the last
- * millisecond of a 16-thread build on a few threads). */
+ * thread, if one waits (task_pool.h). */
 static void offer_pending(as_task_pool *pool, kd_scratch *sc)
 {
-    if (!pool || sc->pending_next == sc->pending_n || !as_task_pool_hungry(pool)) return;
-    const unsigned k = sc->pending_next++;
-    sc->pending_given[k] = (unsigned char)as_task_pool_push(pool, sc->pending[k]);
+    as_pending *p = as_pending_next_offer(pool, &sc->pending);
+    if (p) p->given = as_task_pool_push(pool, p->task);
 }
 
 static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_task t)
@@ -1107,20 +1103,11 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             continue;
         }
         /* Kept: offered again while the left subtree is built. */
-        const int pend = pool && nr >= PARALLEL_MIN_REFS && sc->pending_n < KD_PENDING_MAX;
-        const unsigned me = sc->pending_n;
-        if (pend) {
-            sc->pending[me] = &rt;
-            sc->pending_given[me] = 0;
-            sc->pending_n++;
-        }
+        as_pending rp = {&rt, 0};
+        const int tracked = pool && nr >= PARALLEL_MIN_REFS && as_pending_push(&sc->pending, &rp);
         build_subtree(pool, run, sc, lt);
-        if (pend) {
-            const int given = sc->pending_next > me && sc->pending_given[me];
-            sc->pending_n = me;
-            if (sc->pending_next > me) sc->pending_next = me;
-            if (given) return;
-        }
+        if (tracked) as_pending_pop(&sc->pending);
+        if (rp.given) return;
         t = rt;
     }
 }

@@ -9,6 +9,7 @@
 #include "structure.h"
 #include "mesh.h"
 #include "kd_layout.h"
+#include "task_pool.h"
 
 /* A triangle's reference in a node: its source index and the box of the part
  * of it inside the node (clipped, rounded outwards, inside the node box). */
@@ -56,9 +57,6 @@ typedef int (*kd_choose_fn)(const struct kd_ctx *c, void *state, const kd_ref *r
 #define KD_KEEP_BIT(side, axis, hi) (1u << ((side) * 6 + (axis) * 2 + (hi)))
 #define KD_KEEP_SIDE(side) (0x3fu << ((side) * 6))
 
-/* A task's recursion is no deeper than the depth cap. */
-#define KD_PENDING_MAX (AS_KD_MAX_DEPTH + 1)
-
 typedef struct kd_scratch {
     uint16_t *side;
     uint32_t *clipped[2];
@@ -78,11 +76,8 @@ typedef struct kd_scratch {
      * run's lock. */
     double unreported;
     /* The driver's: the right children that the task using this scratch
-     * has not started (tasks in its recursion's frames, oldest first), and
-     * whether each went to a waiting thread. */
-    void *pending[KD_PENDING_MAX];
-    unsigned char pending_given[KD_PENDING_MAX];
-    unsigned pending_n, pending_next;
+     * has not started (task_pool.h). */
+    as_pending_stack pending;
 } kd_scratch;
 
 /* buf with room for `bytes` (its contents are not kept); NULL when out of

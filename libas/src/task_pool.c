@@ -248,17 +248,17 @@ static void parallel_crew(void *user, unsigned i)
     j->fn(j->user, i + 1, j->n);
 }
 
-/* Inside a pool's task: the indices are taken one at a time by this thread
- * and by whichever of the pool's threads are idle or become idle before
- * they are all taken; with none, this thread runs them all. Up to HELP_MAX
- * steps are published at a time; another thread's step meanwhile runs on
- * its caller alone. */
 static int helpers_left(const void *arg)
 {
     const help_job *h = arg;
     return atomic_load(&h->helpers) == 0;
 }
 
+/* Inside a pool's task: the indices are taken one at a time by this thread
+ * and by whichever of the pool's threads are idle or become idle before
+ * they are all taken; with none, this thread runs them all. Up to HELP_MAX
+ * steps are published at a time; another thread's step meanwhile runs on
+ * its caller alone. */
 static void parallel_in_pool(as_task_pool *p, unsigned n, void (*fn)(void *user, unsigned i, unsigned n), void *user)
 {
     help_job h;

@@ -55,6 +55,53 @@ int as_task_pool_hungry(as_task_pool *pool);
  * read without the lock: a hint. */
 unsigned as_task_pool_idle(as_task_pool *pool);
 
+/* The large right children a task has split off and not started yet, on
+ * its path from its root, oldest (highest in the tree, so largest) first.
+ * Whenever a thread of the pool waits for work, the task hands it the
+ * oldest of them at its next node (as_pending_next_offer). Offering only
+ * the child of the node being split at that moment left the waiting thread
+ * idle until the task's depth-first walk reached a new node big enough to
+ * share: bathroom, binned SAH, two threads, a thread waited 2-4 ms at a
+ * time, 15-25 ms per build; a KD build on 16 threads ended on a few of them
+ * for its last millisecond. The stack is the task's own (no lock); a given
+ * child is built by the task that takes it. */
+typedef struct as_pending {
+    const void *task;   /* the child's task struct, in the caller's frame */
+    int given;          /* 1 once pushed to the pool */
+} as_pending;
+
+/* The deepest builder's depth cap, plus one. */
+#define AS_PENDING_MAX 65
+
+typedef struct as_pending_stack {
+    as_pending *e[AS_PENDING_MAX];
+    uint32_t n;      /* entries */
+    uint32_t next;   /* entries below it are given (or were refused) */
+} as_pending_stack;
+
+static inline void as_pending_init(as_pending_stack *s) { s->n = s->next = 0; }
+/* Records p (not given); 0 when the stack is full (then p is the caller's). */
+static inline int as_pending_push(as_pending_stack *s, as_pending *p)
+{
+    p->given = 0;
+    if (s->n == AS_PENDING_MAX) return 0;
+    s->e[s->n++] = p;
+    return 1;
+}
+/* Removes the newest entry, before its owner builds it (unless given). */
+static inline void as_pending_pop(as_pending_stack *s)
+{
+    s->n--;
+    if (s->next > s->n) s->next = s->n;
+}
+/* The oldest entry not offered yet when a thread of the pool waits for
+ * work, else NULL; the caller shares its task and sets `given`. */
+static inline as_pending *as_pending_next_offer(as_task_pool *pool, as_pending_stack *s)
+{
+    if (s->next == s->n || !pool || !as_task_pool_hungry(pool)) return NULL;
+    return s->e[s->next++];
+}
+
 /* Runs fn(user, i, n) once for each i in [0, n) and returns when all are
  * done; n is clamped to [1, 256]. Outside a pool: on n threads, the
  * caller's included (a thread that cannot be started runs on the caller's).
