@@ -334,12 +334,28 @@ static inline float round_up(double x)
     return select_float((double)f < x, as_float_next_up(f), f);
 }
 
+/* The faces of box that a reference's bounds reach, as clip_triangle's
+ * plane bits. The reference bounds the triangle's part in the box (every
+ * reference the builders make does), so a face it stays clear of cannot cut
+ * that part: the triangle clipped without it is the same convex polygon
+ * (its computed corners may differ in their last bits, and the bounds,
+ * rounded out to floats, rarely by one step). Deep in the tree a triangle
+ * reaches past many of a node's faces while its part touches few. */
+static inline unsigned faces_touched(const kd_ref *old, const float box[6])
+{
+    unsigned faces = 0;
+    for (int k = 0; k < 3; ++k)
+        faces |= (unsigned)(old->lo[k] <= box[k]) << k | (unsigned)(old->hi[k] >= box[k + 3]) << (k + 3);
+    return faces;
+}
+
 /* Triangle t clipped to `box` (Sutherland-Hodgman, in double precision, the
  * planes in order): the polygon's vertices, in one of `poly`'s two
  * buffers, and their count in *count. Six planes add at most six vertices
  * to the triangle's three; one more slot repeats the first vertex after the
  * last, so that every edge is (v[i], v[i + 1]). */
-static const double (*clip_triangle(const as_tri4_t *t, const float box[6], double poly[2][10][3], int *count))[3]
+static const double (*clip_triangle(const as_tri4_t *t, const kd_ref *old, const float box[6], double poly[2][10][3],
+                                    int *count))[3]
 {
     int cnt = 3, cur = 0;
     const as_f4_t *const tv[3] = {&t->v0, &t->v1, &t->v2};
@@ -355,6 +371,7 @@ static const double (*clip_triangle(const as_tri4_t *t, const float box[6], doub
         const double lo = min_double(min_double(p0, p1), p2), hi = max_double(max_double(p0, p1), p2);
         planes |= (unsigned)(lo < (double)box[k]) << k | (unsigned)(hi > (double)box[k + 3]) << (k + 3);
     }
+    planes &= faces_touched(old, box);
     while (planes && cnt > 0) {
         const int plane = __builtin_ctz(planes), axis = plane % 3, upper = plane >= 3;
         planes &= planes - 1;
@@ -505,7 +522,7 @@ static void clip_ref(const as_tri4_t *tris, const kd_ref *old, const float box[6
 {
     double poly[2][10][3];
     int cnt;
-    const double (*v)[3] = clip_triangle(&tris[old->id], box, poly, &cnt);
+    const double (*v)[3] = clip_triangle(&tris[old->id], old, box, poly, &cnt);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int i = 0; i < cnt; ++i)
         for (int k = 0; k < 3; ++k) {
@@ -525,7 +542,7 @@ static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float
 {
     double poly[2][10][3];
     int cnt;
-    const double (*v)[3] = clip_triangle(&tris[old->id], node_box, poly, &cnt);
+    const double (*v)[3] = clip_triangle(&tris[old->id], old, node_box, poly, &cnt);
     double lo[2][3], hi[2][3];
     int below = 0, above = 0;
 #if defined(__SSE2__)
@@ -626,7 +643,7 @@ static const int64_t clip_axis_lane[3][4] = {{-1, 0, 0, 0}, {0, -1, 0, 0}, {0, 0
  * order (no fused multiply-add), so the same bits, in about half the
  * instructions of two vectors per vertex. The polygon is in poly[*cur], its
  * first vertex repeated after the last; returns its vertex count. */
-__attribute__((target("avx2"), always_inline)) static inline int clip_triangle_avx2(const as_tri4_t *t, const float box[6],
+__attribute__((target("avx2"), always_inline)) static inline int clip_triangle_avx2(const as_tri4_t *t, const kd_ref *old, const float box[6],
                                                               double poly[2][10][4], int *cur_out)
 {
     /* The fourth float (an index's bits in v0) is not converted: it may
@@ -644,6 +661,7 @@ __attribute__((target("avx2"), always_inline)) static inline int clip_triangle_a
     const __m256d lo = _mm256_min_pd(_mm256_min_pd(v0, v1), v2), hi = _mm256_max_pd(_mm256_max_pd(v0, v1), v2);
     unsigned planes = ((unsigned)_mm256_movemask_pd(_mm256_cmp_pd(lo, box_lo, _CMP_LT_OQ)) & 7u) |
                       (((unsigned)_mm256_movemask_pd(_mm256_cmp_pd(hi, box_hi, _CMP_GT_OQ)) & 7u) << 3);
+    planes &= faces_touched(old, box);
     int cnt = 3, cur = 0;
     while (planes && cnt > 0) {
         const int plane = __builtin_ctz(planes), pa = plane % 3, upper = plane >= 3;
@@ -682,7 +700,7 @@ __attribute__((target("avx2"))) static void clip_ref_avx2(const as_tri4_t *tris,
 {
     _Alignas(32) double poly[2][10][4];
     int cur;
-    const int cnt = clip_triangle_avx2(&tris[old->id], box, poly, &cur);
+    const int cnt = clip_triangle_avx2(&tris[old->id], old, box, poly, &cur);
     __m256d lo = _mm256_set1_pd(INFINITY), hi = _mm256_set1_pd(-INFINITY);
     for (int i = 0; i < cnt; ++i) {
         const __m256d p = _mm256_load_pd(poly[cur][i]);
@@ -699,7 +717,7 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
 {
     _Alignas(32) double poly[2][10][4];
     int cur;
-    const int cnt = clip_triangle_avx2(&tris[old->id], node_box, poly, &cur);
+    const int cnt = clip_triangle_avx2(&tris[old->id], old, node_box, poly, &cur);
     /* The polygon's parts on either side of the split plane. */
     double (*const v)[4] = poly[cur];
     const __m256d inf = _mm256_set1_pd(INFINITY), ninf = _mm256_set1_pd(-INFINITY), at = _mm256_set1_pd((double)pos);
@@ -1056,17 +1074,17 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             *t.slot = make_leaf(run, sc, refs, n, t.pooled, t.state, t.depth, t.weight);
             return;
         }
-        float lbox[6], rbox[6];
-        memcpy(lbox, box, sizeof lbox);
-        memcpy(rbox, box, sizeof rbox);
-        lbox[sp.axis + 3] = sp.pos;
-        rbox[sp.axis] = sp.pos;
+        /* Each child's box copied from the node's, then its plane set: a
+         * copy of a box just written a float at a time would wait for those
+         * stores. */
         part.out[0] = lr;
         part.out[1] = rr;
         part.side = hand_down ? sc->side : NULL;
         memcpy(part.node_box, box, sizeof part.node_box);
-        memcpy(part.box[0], lbox, sizeof lbox);
-        memcpy(part.box[1], rbox, sizeof rbox);
+        memcpy(part.box[0], box, sizeof part.box[0]);
+        memcpy(part.box[1], box, sizeof part.box[1]);
+        part.box[0][sp.axis + 3] = sp.pos;
+        part.box[1][sp.axis] = sp.pos;
         if (hand_down) {
             part.clipped[0] = sc->clipped[0];
             part.clipped[1] = sc->clipped[1];
@@ -1096,8 +1114,10 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
         kd_task lt = {lr, nl, 1, child_state[0], {0}, t.depth + 1, t.share * fl, t.weight * fl, &node->child[0]};
         kd_task rt = {rr, nr, 1, child_state[1], {0}, t.depth + 1, t.share * (1.0 - fl), t.weight * (1.0 - fl),
                       &node->child[1]};
-        memcpy(lt.box, lbox, sizeof lbox);
-        memcpy(rt.box, rbox, sizeof rbox);
+        memcpy(lt.box, box, sizeof lt.box);
+        memcpy(rt.box, box, sizeof rt.box);
+        lt.box[sp.axis + 3] = sp.pos;
+        rt.box[sp.axis] = sp.pos;
         if (pool && nr >= PARALLEL_MIN_REFS && as_task_pool_hungry(pool) && as_task_pool_push(pool, &rt)) {
             t = lt;
             continue;
