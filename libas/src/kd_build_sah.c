@@ -1903,18 +1903,21 @@ static int sah_choose_small(const kd_ctx *c, const kd_ref *refs, uint32_t n, con
              * the threshold rounded up to a float in one compare, the few
              * that pass tested again exactly. The costs past the last
              * candidate are infinite (the pricing writes whole blocks). */
-            /* Which candidates pass, for all of them first: a loop of a
-             * few steps, then one over the few that pass. */
+            /* Which of 64 candidates pass, gathered in a register (a
+             * mask kept in memory would make each step wait for the one
+             * before), then the few that pass. */
             const __m128 t = _mm_set1_ps(threshold_float(&b));
-            uint64_t pass[(SMALL_CANDIDATES + 63) / 64] = {0};
-            for (uint32_t q = 0; q < sa->n_cand; q += 4)
-                pass[q >> 6] |= (uint64_t)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[q]), t)) << (q & 63);
-            for (uint32_t w = 0; w < (SMALL_CANDIDATES + 63) / 64; ++w)
-                for (uint64_t lanes = pass[w]; lanes; lanes &= lanes - 1u) {
-                    const uint32_t j = 64 * w + (uint32_t)__builtin_ctzll(lanes);
+            for (uint32_t w = 0; w < sa->n_cand; w += 64) {
+                const uint32_t end = sa->n_cand - w < 64 ? sa->n_cand - w : 64;
+                uint64_t lanes = 0;
+                for (uint32_t q = 0; q < end; q += 4)
+                    lanes |= (uint64_t)_mm_movemask_ps(_mm_cmple_ps(_mm_loadu_ps(&sa->cost[w + q]), t)) << q;
+                for (; lanes; lanes &= lanes - 1u) {
+                    const uint32_t j = w + (uint32_t)__builtin_ctzll(lanes);
                     if (!((double)sa->cost[j] <= b.threshold)) continue;
                     price_plane_exactly(small_key_float(sa->cand[j]), sa->nl0[j], sa->nr0[j], sa->in_plane[j], &ep[axis], &b);
                 }
+            }
         } else
 #endif
             for (uint32_t j = 0; j < sa->n_cand; ++j) {
