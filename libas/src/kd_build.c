@@ -474,14 +474,17 @@ static inline __m128 select4(__m128 m, __m128 a, __m128 b) { return _mm_or_ps(_m
 
 /* The clipped reference from old's box within `box`, narrowed to the
  * clipped triangle's bounds rounded out to floats (fl, fh; `clipped` 0 when
- * clipping left nothing): the steps every vector form shares. */
-static inline void clipped_ref_finish(const kd_ref *old, const float box[6], int clipped, __m128 fl, __m128 fh,
-                                      kd_ref *out)
+ * clipping left nothing): the steps every vector form shares. Returns the
+ * events of old that the clipped reference keeps, clipped_keep's bits for
+ * child 0, made from the bounds still in registers. */
+static inline unsigned clipped_ref_finish(const kd_ref *old, const float box[6], int clipped, __m128 fl, __m128 fh,
+                                          kd_ref *out)
 {
-    __m128 lo = _mm_max_ps(load3_zero(old->lo), load3_zero(box));
+    const __m128 old_lo = load3_zero(old->lo), old_hi = load3_zero(old->hi);
+    __m128 lo = _mm_max_ps(old_lo, load3_zero(box));
     /* box[3..5] from the four floats ending there: box has six. */
     const __m128 box_hi = _mm_loadu_ps(box + 2);
-    __m128 hi = _mm_min_ps(load3_zero(old->hi), load3_zero_lanes(_mm_shuffle_ps(box_hi, box_hi, _MM_SHUFFLE(3, 3, 2, 1))));
+    __m128 hi = _mm_min_ps(old_hi, load3_zero_lanes(_mm_shuffle_ps(box_hi, box_hi, _MM_SHUFFLE(3, 3, 2, 1))));
     if (clipped) {
         lo = select4(_mm_and_ps(_mm_cmpgt_ps(fl, lo), _mm_cmple_ps(fl, hi)), fl, lo);
         hi = select4(_mm_and_ps(_mm_cmplt_ps(fh, hi), _mm_cmpge_ps(fh, lo)), fh, hi);
@@ -492,6 +495,12 @@ static inline void clipped_ref_finish(const kd_ref *old, const float box[6], int
     memcpy(out->lo, l, sizeof out->lo);
     memcpy(out->hi, h, sizeof out->hi);
     out->id = old->id;
+    const __m128 old_flat = _mm_cmpeq_ps(old_lo, old_hi), now_flat = _mm_cmpeq_ps(lo, hi);
+    const __m128 keep_lo = _mm_or_ps(old_flat, _mm_andnot_ps(now_flat, _mm_cmpeq_ps(lo, old_lo)));
+    const __m128 keep_hi = _mm_andnot_ps(_mm_or_ps(old_flat, now_flat), _mm_cmpeq_ps(hi, old_hi));
+    /* Axis a's two bits at 2a and 2a + 1. */
+    static const uint8_t spread[8] = {0, 1, 4, 5, 16, 17, 20, 21};
+    return (unsigned)spread[_mm_movemask_ps(keep_lo) & 7] | (unsigned)spread[_mm_movemask_ps(keep_hi) & 7] << 1;
 }
 
 void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dlo, const double *dhi, kd_ref *out)
@@ -504,7 +513,7 @@ void kd_clipped_ref_sse2(const kd_ref *old, const float box[6], const double *dl
         const __m128 g = floats_of(dhi, &above, &below);
         fh = select4(below, next_up4(g), g);
     }
-    clipped_ref_finish(old, box, dlo != NULL, fl, fh, out);
+    (void)clipped_ref_finish(old, box, dlo != NULL, fl, fh, out);
 }
 #endif
 
@@ -617,8 +626,8 @@ static void clip_ref_split(const as_tri4_t *tris, const kd_ref *old, const float
 
 /* kd_clipped_ref_sse2 with the bounds in a vector of four doubles: the
  * same floats. */
-__attribute__((target("avx2"))) static inline void clipped_ref_avx2(const kd_ref *old, const float box[6], int clipped,
-                                                                    __m256d dlo, __m256d dhi, kd_ref *out)
+__attribute__((target("avx2"))) static inline unsigned clipped_ref_avx2(const kd_ref *old, const float box[6], int clipped,
+                                                                        __m256d dlo, __m256d dhi, kd_ref *out)
 {
     __m128 fl = _mm_setzero_ps(), fh = _mm_setzero_ps();
     if (clipped) {
@@ -632,7 +641,7 @@ __attribute__((target("avx2"))) static inline void clipped_ref_avx2(const kd_ref
         fl = select4(above, next_down4(f), f);
         fh = select4(below, next_up4(g), g);
     }
-    clipped_ref_finish(old, box, clipped, fl, fh, out);
+    return clipped_ref_finish(old, box, clipped, fl, fh, out);
 }
 
 /* A mask of the lane of one axis, per axis. */
@@ -694,9 +703,9 @@ __attribute__((target("avx2"), always_inline)) static inline int clip_triangle_a
     return cnt;
 }
 
-/* clip_ref in the AVX2 form. */
-__attribute__((target("avx2"))) static void clip_ref_avx2(const as_tri4_t *tris, const kd_ref *old, const float box[6],
-                                                          kd_ref *out)
+/* clip_ref in the AVX2 form; returns clipped_keep's bits for child 0. */
+__attribute__((target("avx2"))) static unsigned clip_ref_avx2(const as_tri4_t *tris, const kd_ref *old, const float box[6],
+                                                              kd_ref *out)
 {
     _Alignas(32) double poly[2][10][4];
     int cur;
@@ -707,13 +716,14 @@ __attribute__((target("avx2"))) static void clip_ref_avx2(const as_tri4_t *tris,
         lo = _mm256_min_pd(lo, p);
         hi = _mm256_max_pd(hi, p);
     }
-    clipped_ref_avx2(old, box, cnt != 0, lo, hi, out);
+    return clipped_ref_avx2(old, box, cnt != 0, lo, hi, out);
 }
 
-/* clip_ref_split in the AVX2 form. */
+/* clip_ref_split in the AVX2 form, with clipped_keep's bits of each child
+ * (for child 0) in keep. */
 __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t *tris, const kd_ref *old,
                                                                 const float node_box[6], const float box[2][6], int axis,
-                                                                float pos, kd_ref *out[2])
+                                                                float pos, kd_ref *out[2], unsigned keep[2])
 {
     _Alignas(32) double poly[2][10][4];
     int cur;
@@ -741,40 +751,61 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
         below |= l | x;
         above |= r | x;
     }
-    clipped_ref_avx2(old, box[0], below, lo0, hi0, out[0]);
-    clipped_ref_avx2(old, box[1], above, lo1, hi1, out[1]);
+    keep[0] = clipped_ref_avx2(old, box[0], below, lo0, hi0, out[0]);
+    keep[1] = clipped_ref_avx2(old, box[1], above, lo1, hi1, out[1]);
 }
 #endif
 
-/* A reference clipped to box, in the fastest form this processor has. */
-static void clip_ref_fastest(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
+/* The events of `old` that a clipped reference `now` keeps, as child 0's
+ * bits (child 1's are these shifted by six): a bound that clipping did not
+ * move keeps its event, unless the box became flat along the axis (its one
+ * event is then a new PLANAR one). A flat box stays flat and where it was.
+ * The vector forms make the same bits as they clip (clipped_ref_finish). */
+static unsigned clipped_keep(const kd_ref *old, const kd_ref *now)
+{
+    const int s = 0;
+    unsigned keep = 0;
+    for (int a = 0; a < 3; ++a) {
+        if (old->lo[a] == old->hi[a]) {
+            keep |= KD_KEEP_BIT(s, a, 0);
+        } else if (now->lo[a] != now->hi[a]) {
+            if (now->lo[a] == old->lo[a]) keep |= KD_KEEP_BIT(s, a, 0);
+            if (now->hi[a] == old->hi[a]) keep |= KD_KEEP_BIT(s, a, 1);
+        }
+    }
+    return keep;
+}
+
+/* A reference clipped to box, in the fastest form this processor has;
+ * returns clipped_keep's bits for child 0. */
+static unsigned clip_ref_fastest(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
 {
 #if defined(KD_CLIP_AVX2)
-    if (as_cpu_has_avx2()) {
-        clip_ref_avx2(tris, old, box, out);
-        return;
-    }
+    if (as_cpu_has_avx2()) return clip_ref_avx2(tris, old, box, out);
 #endif
     clip_ref(tris, old, box, out);
+    return clipped_keep(old, out);
 }
 
 /* Both children's references of a crossing triangle, in the fastest form
- * this processor has. */
+ * this processor has, with clipped_keep's bits of each (for child 0). */
 static void clip_ref_split_fastest(const as_tri4_t *tris, const kd_ref *old, const float node_box[6],
-                                   const float box[2][6], int axis, float pos, kd_ref *out[2])
+                                   const float box[2][6], int axis, float pos, kd_ref *out[2], unsigned keep[2])
 {
 #if defined(KD_CLIP_AVX2)
     if (as_cpu_has_avx2()) {
-        clip_ref_split_avx2(tris, old, node_box, box, axis, pos, out);
+        clip_ref_split_avx2(tris, old, node_box, box, axis, pos, out, keep);
         return;
     }
 #endif
     clip_ref_split(tris, old, node_box, box, axis, pos, out);
+    keep[0] = clipped_keep(old, out[0]);
+    keep[1] = clipped_keep(old, out[1]);
 }
 
 void kd_clip_reference(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
 {
-    clip_ref_fastest(tris, old, box, out);
+    (void)clip_ref_fastest(tris, old, box, out);
 }
 
 void kd_clip_reference_portable(const as_tri4_t *tris, const kd_ref *old, const float box[6], kd_ref *out)
@@ -791,7 +822,8 @@ static void clip_reference_split(const as_tri4_t *tris, const kd_ref *old, const
     box[0][axis + 3] = pos;
     box[1][axis] = pos;
     kd_ref *outs[2] = {&out[0], &out[1]};
-    if (fastest) clip_ref_split_fastest(tris, old, node_box, (const float(*)[6])box, axis, pos, outs);
+    unsigned keep[2];
+    if (fastest) clip_ref_split_fastest(tris, old, node_box, (const float(*)[6])box, axis, pos, outs, keep);
     else clip_ref_split(tris, old, node_box, (const float(*)[6])box, axis, pos, outs);
 }
 
@@ -834,24 +866,6 @@ static int goes_right(const kd_ref *r, const kd_split *s)
     return hi >= s->pos;
 }
 
-/* The events of `old` that a clipped reference `now` in child s keeps: a
- * bound that clipping did not move keeps its event, unless the box became
- * flat along the axis (its one event is then a new PLANAR one). A flat box
- * stays flat and where it was. */
-static unsigned clipped_keep(const kd_ref *old, const kd_ref *now, int s)
-{
-    unsigned keep = 0;
-    for (int a = 0; a < 3; ++a) {
-        if (old->lo[a] == old->hi[a]) {
-            keep |= KD_KEEP_BIT(s, a, 0);
-        } else if (now->lo[a] != now->hi[a]) {
-            if (now->lo[a] == old->lo[a]) keep |= KD_KEEP_BIT(s, a, 0);
-            if (now->hi[a] == old->hi[a]) keep |= KD_KEEP_BIT(s, a, 1);
-        }
-    }
-    return keep;
-}
-
 /* Where a node's references go: both children's arrays, the indices of
  * the clipped ones in them, and for the SAH builder a byte per triangle
  * saying which of its events each child keeps (KD_KEEP_*). */
@@ -889,11 +903,12 @@ static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint3
         unsigned keep = 0;
         if (lo < pos && hi > pos) {
             kd_ref *out[2] = {&o0[at[0]], &o1[at[1]]};
-            clip_ref_split_fastest(p->c->tris, r, p->node_box, p->box, axis, pos, out);
+            unsigned kept[2];
+            clip_ref_split_fastest(p->c->tris, r, p->node_box, p->box, axis, pos, out, kept);
+            keep = kept[0] | kept[1] << 6;
             for (int s = 0; s < 2; ++s) {
                 if (p->clipped[s]) p->clipped[s][clipped_at[s]] = at[s];
                 ++clipped_at[s];
-                keep |= clipped_keep(r, out[s], s);
                 ++at[s];
             }
             if (side) side[r->id] = (uint16_t)keep;
@@ -915,10 +930,9 @@ static void partition_range(kd_partition *p, uint32_t begin, uint32_t end, uint3
             if (!(s ? rt : l)) continue;
             kd_ref *out = s ? &o1[at[1]] : &o0[at[0]];
             if (s ? lo < pos : hi > pos) {
-                clip_ref_fastest(p->c->tris, r, p->box[s], out);
+                keep |= clip_ref_fastest(p->c->tris, r, p->box[s], out) << (6 * s);
                 if (p->clipped[s]) p->clipped[s][clipped_at[s]] = at[s];
                 ++clipped_at[s];
-                keep |= clipped_keep(r, out, s);
             } else {
                 *out = *r;
                 keep |= KD_KEEP_SIDE(s);
