@@ -30,6 +30,9 @@ seed tri_off 2 $data/tri.off
 seed tri_normals_off 2 $data/tri_normals.off
 seed index_out_of_range_off 2 $data/index_out_of_range.off
 seed short_face_off 2 $data/short_face.off
+seed off_counts_line_two_numbers_off 2 $data/off_counts_line_two_numbers.off
+seed off_vertex_line_short_off 2 $data/off_vertex_line_short.off
+seed off_normal_short_off 2 $data/off_normal_short.off
 seed tiny_ascii_stl 3 $data/tiny.stl
 seed tiny_binary_stl 3 $data/tiny_binary.stl
 seed quad_binary_ply_zst 9 $data/quad_binary.ply.zst

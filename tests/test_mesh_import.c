@@ -294,9 +294,26 @@ static void import_refuses_garbage_ply_header(void)
 static void import_refuses_unreadable_header_count_and_glued_corners(void)
 {
     check_refused("bad_element_count.ply", AS_ERROR_PARSE, "line 7: 'element' takes a name and a count");
-    check_refused("glued_corners.off", AS_ERROR_PARSE, "cannot parse as OFF");
+    check_refused("glued_corners.off", AS_ERROR_PARSE,
+                  "cannot parse as OFF (line 6: face 0 must be its corner count and exactly that many vertex indices)");
     /* A number left over on a face line would be the next face's count. */
-    check_refused("off_face_number_left_over.off", AS_ERROR_PARSE, "cannot parse as OFF");
+    check_refused("off_face_number_left_over.off", AS_ERROR_PARSE,
+                  "cannot parse as OFF (line 7: face 0 must be its corner count and exactly that many vertex indices)");
+}
+
+/* OpenMesh's OFF reader takes the counts and the coordinates number by
+ * number across lines: a counts line without its edge count, or a vertex
+ * line a number short, would shift every number after it, and a corner
+ * index read as a corner count had it allocate gigabytes. The line is named
+ * instead. */
+static void import_refuses_off_lines_shorter_than_the_reader_reads(void)
+{
+    check_refused("off_counts_line_two_numbers.off", AS_ERROR_PARSE,
+                  "cannot parse as OFF (line 2: the counts line must hold three counts: vertices, faces, edges)");
+    check_refused("off_vertex_line_short.off", AS_ERROR_PARSE,
+                  "cannot parse as OFF (line 4: vertex 1 must begin with 3 numbers)");
+    check_refused("off_normal_short.off", AS_ERROR_PARSE,
+                  "cannot parse as OFF (line 4: vertex 1 must begin with 6 numbers)");
 }
 
 /* An OBJ face corner is its whole word: a NUL byte inside it had ended the
@@ -392,6 +409,21 @@ static void obj_keeps_faces_with_repeated_corners_normals_uvs_and_materials(void
         CHECK_EQ_INT(as_mesh_material_ids(m)[t], want_mat[t]);
     if (as_mesh_normals(m)) CHECK(as_mesh_normals(m)[3 * 4 + 2] == 1.0f);
     if (as_mesh_uvs(m)) CHECK(as_mesh_uvs(m)[2 * 4] == 0.5f && as_mesh_uvs(m)[2 * 4 + 1] == 1.0f);
+    as_mesh_release(m);
+}
+
+/* A COFF file's colours follow the coordinates of a vertex and the corners
+ * of a face on the same line: the reader takes them from there, and the
+ * checks before it let them be. */
+static void coff_colours_after_corners_are_read_past(void)
+{
+    as_mesh_info_t info;
+    as_mesh_t *m = import_ok(data_path("coff_face_colours.off"), &info);
+    if (m) {
+        CHECK_EQ_U64(info.triangle_count, 1);
+        CHECK_EQ_U64(info.vertex_count, 3);
+        check_triangle(m, 0, 0, 1, 2);
+    }
     as_mesh_release(m);
 }
 
@@ -658,6 +690,7 @@ int main(int argc, char **argv)
     RUN_TEST(import_refuses_file_without_triangles);
     RUN_TEST(import_refuses_garbage_ply_header);
     RUN_TEST(import_refuses_unreadable_header_count_and_glued_corners);
+    RUN_TEST(import_refuses_off_lines_shorter_than_the_reader_reads);
     RUN_TEST(import_refuses_obj_corner_that_is_not_a_whole_number);
     RUN_TEST(import_refuses_truncated_binary_ply);
     RUN_TEST(import_refuses_ply_whose_numbers_do_not_add_up);
@@ -667,6 +700,7 @@ int main(int argc, char **argv)
     RUN_TEST(obj_quads_become_consecutive_fan_triangles);
     RUN_TEST(obj_keeps_faces_with_repeated_corners_normals_uvs_and_materials);
     RUN_TEST(off_polygon_is_fanned_and_normals_kept_only_when_present);
+    RUN_TEST(coff_colours_after_corners_are_read_past);
     RUN_TEST(compressed_off_reads_like_uncompressed);
     RUN_TEST(extension_is_matched_without_case);
     RUN_TEST(ply_keeps_zero_area_and_repeated_index_faces_in_order);

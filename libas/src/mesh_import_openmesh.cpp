@@ -23,6 +23,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -330,6 +331,7 @@ public:
     bool next(std::vector<std::string> &words)
     {
         if (pos_ >= size_) return false;
+        ++line_;
         const char *nl = static_cast<const char *>(std::memchr(data_ + pos_, '\n', size_ - pos_));
         const size_t end = nl ? size_t(nl - data_) : size_;
         words.clear();
@@ -350,10 +352,12 @@ public:
             if (!words.empty()) return true;
         return false;
     }
+    /* The number of the line last read, from 1. */
+    size_t line() const { return line_; }
 
 private:
     const char *data_;
-    size_t size_, pos_ = 0;
+    size_t size_, pos_ = 0, line_ = 0;
 };
 
 /* A plain number the OFF reader reads whole into its 32-bit counts and
@@ -369,49 +373,106 @@ bool parse_count(const std::string &w, unsigned long long &n)
     return after == w.c_str() + w.size() && errno == 0 && n <= 0xffffffffull;
 }
 
+/* A word the OFF reader reads whole as a coordinate: a decimal number and
+ * nothing after it. */
+bool parse_real(const std::string &w)
+{
+    if (w.empty() || w.find_first_not_of("0123456789+-.eE") != std::string::npos) return false;
+    char *after;
+    std::strtod(w.c_str(), &after);
+    return after == w.c_str() + w.size();
+}
+
 /* A face line of a text OFF file must hold exactly the corners its count
  * announces, each a plain number. OpenMesh's reader reads faces number by
  * number across lines and trusts each count ("-3" reads as 4294967293, "2-3"
  * as 2 then -3, and a number left over, such as a face colour, as the next
  * face's count), pushing that many corners past a failed stream. */
-bool face_line_sane(const std::vector<std::string> &words)
+bool face_line_sane(const std::vector<std::string> &words, bool colours)
 {
     unsigned long long k, v;
     if (words.empty() || !parse_count(words[0], k)) return false;
-    if (k != words.size() - 1) return false;
+    /* With face colours (COFF, CNOFF, ...) the reader takes the rest of
+     * the line after the corners as the colour. */
+    if (colours ? k > words.size() - 1 : k != words.size() - 1) return false;
     for (size_t i = 1; i <= k; ++i)
         if (!parse_count(words[i], v)) return false;
     return true;
 }
 
 /* A text OFF file's counts line and the lines they promise, and the corner
- * counts of its faces. OpenMesh's OFF reader does not notice a missing or
+ * counts of its faces. OpenMesh's OFF reader reads the counts and each
+ * vertex's coordinates (and normal) number by number across lines, and
+ * trusts what it reads: a counts line of two numbers made it take the first
+ * face's corner count for the edge count and a corner index for a corner
+ * count, and push that many corners; a vertex line one number short shifts
+ * everything after it the same way. Nor does it notice a missing or
  * unreadable counts line, nor a body shorter than the counts: it reads on at
  * the end of the stream with counts it never set, which loops or allocates
- * gigabytes. So both are refused here. */
-bool off_faces_sane(const char *data, size_t size)
+ * gigabytes. So the lines must hold what the reader will take from them;
+ * false with the line and what is wrong in *why. */
+bool off_faces_sane(const char *data, size_t size, std::string *why)
 {
     std::vector<std::string> words;
     LineWords lines(data, size);
-    if (!lines.next(words) || words.empty() || words.size() > 2) return false;
+    char at[160];
+    if (!lines.next(words) || words.empty() || words.size() > 2) {
+        *why = "line 1: no OFF keyword line";
+        return false;
+    }
     /* The header line is the keyword (letters and digits ending in OFF:
      * OFF, NOFF, COFF, STOFF, 4OFF, ...) and at most the word BINARY; on
      * anything else OpenMesh may guess ASCII or binary either way, so the
      * checks below could not speak for the reader. */
     const std::string &magic = words[0];
-    if (magic.size() < 3 || magic.compare(magic.size() - 3, 3, "OFF") != 0) return false;
+    bool keyword = magic.size() >= 3 && magic.compare(magic.size() - 3, 3, "OFF") == 0;
     for (char ch : magic)
-        if (!std::isalnum(static_cast<unsigned char>(ch))) return false;
-    if (words.size() == 2) return words[1] == "BINARY"; /* the reader checks the binary body */
-    unsigned long long nv, nf;
-    if (!lines.next_nonblank(words) || words.size() < 2 || !parse_count(words[0], nv) ||
-        !parse_count(words[1], nf))
+        if (!std::isalnum(static_cast<unsigned char>(ch))) keyword = false;
+    if (!keyword || (words.size() == 2 && words[1] != "BINARY")) {
+        *why = "line 1: no OFF keyword line";
         return false;
-    for (unsigned long long i = 0; i < nv; ++i)
-        if (!lines.next_nonblank(words)) return false;
+    }
+    if (words.size() == 2) return true; /* the reader checks the binary body */
+    /* With normals (NOFF, CNOFF, STNOFF, ...) a vertex is six numbers, the
+     * reader takes any colour or texture coordinates from the rest of its
+     * line. */
+    const size_t per_vertex = magic.find('N') != std::string::npos ? 6 : 3;
+    const bool colours = magic.find('C') != std::string::npos;
+    unsigned long long nv, nf, ne;
+    if (!lines.next_nonblank(words) || words.size() != 3 || !parse_count(words[0], nv) ||
+        !parse_count(words[1], nf) || !parse_count(words[2], ne)) {
+        std::snprintf(at, sizeof at, "line %zu: the counts line must hold three counts: vertices, faces, edges",
+                      lines.line());
+        *why = at;
+        return false;
+    }
+    for (unsigned long long i = 0; i < nv; ++i) {
+        if (!lines.next_nonblank(words)) {
+            std::snprintf(at, sizeof at, "the file ends after %llu of its %llu vertices", i, nv);
+            *why = at;
+            return false;
+        }
+        bool numbers = words.size() >= per_vertex;
+        for (size_t k = 0; numbers && k < per_vertex; ++k) numbers = parse_real(words[k]);
+        if (!numbers) {
+            std::snprintf(at, sizeof at, "line %zu: vertex %llu must begin with %zu numbers", lines.line(), i,
+                          per_vertex);
+            *why = at;
+            return false;
+        }
+    }
     for (unsigned long long i = 0; i < nf; ++i) {
-        if (!lines.next_nonblank(words)) return false;
-        if (!face_line_sane(words)) return false;
+        if (!lines.next_nonblank(words)) {
+            std::snprintf(at, sizeof at, "the file ends after %llu of its %llu faces", i, nf);
+            *why = at;
+            return false;
+        }
+        if (!face_line_sane(words, colours)) {
+            std::snprintf(at, sizeof at, "line %zu: face %llu must be its corner count and %sthat many vertex indices",
+                          lines.line(), i, colours ? "" : "exactly ");
+            *why = at;
+            return false;
+        }
     }
     return true;
 }
@@ -630,6 +691,7 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
     if (format == "ply" && as_mesh_check_ply(data, size, name) != AS_OK) return as_get_error();
     bool ok = false;
     bool stream_failed;
+    std::string off_why;
     {
         std::lock_guard<std::mutex> lock(openmesh_mutex);
         QuietOpenMesh quiet;
@@ -644,7 +706,7 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
         } else if (format == "ply") {
             ok = OpenMesh::IO::PLYReader().read(in, rec, opt);
         } else {
-            ok = off_faces_sane(static_cast<const char *>(data), size) &&
+            ok = off_faces_sane(static_cast<const char *>(data), size, &off_why) &&
                  off_prepare_header(static_cast<const char *>(data), size, file_path) &&
                  OpenMesh::IO::OFFReader().read(in, rec, opt);
         }
@@ -654,6 +716,7 @@ as_error_t read_openmesh(const void *data, size_t size, const std::string &forma
         stream_failed = in.fail();
     }
     const char *fmt = upper(format);
+    if (!ok && !off_why.empty()) return as_set_error(AS_ERROR_PARSE, "%s: cannot parse as %s (%s)", name, fmt, off_why.c_str());
     if (!ok) return as_set_error(AS_ERROR_PARSE, "%s: cannot parse as %s", name, fmt);
     if (format == "obj") return read_obj(rec, scan, name, mesh);
 
