@@ -33,6 +33,7 @@ seed short_face_off 2 $data/short_face.off
 seed off_counts_line_two_numbers_off 2 $data/off_counts_line_two_numbers.off
 seed off_vertex_line_short_off 2 $data/off_vertex_line_short.off
 seed off_normal_short_off 2 $data/off_normal_short.off
+seed coff_face_colours_off 2 $data/coff_face_colours.off
 seed tiny_ascii_stl 3 $data/tiny.stl
 seed tiny_binary_stl 3 $data/tiny_binary.stl
 seed quad_binary_ply_zst 9 $data/quad_binary.ply.zst
