@@ -353,6 +353,13 @@ static void import_refuses_truncated_binary_ply(void)
     check_refused("truncated_binary.ply", AS_ERROR_PARSE, "the data ends in face 3 of 3");
 }
 
+/* A binary header whose 'end_header' is the file's last bytes, without a
+ * newline: the body is empty, not somewhere past the end of the data. */
+static void import_refuses_binary_ply_ending_at_end_header(void)
+{
+    check_refused("ply_binary_header_without_last_newline.ply", AS_ERROR_PARSE, "the data ends in vertex 1 of 5");
+}
+
 static void import_refuses_damaged_zstd_frame(void)
 {
     check_refused("damaged.ply.zst", AS_ERROR_PARSE, "damaged zstd data");
@@ -693,6 +700,7 @@ int main(int argc, char **argv)
     RUN_TEST(import_refuses_off_lines_shorter_than_the_reader_reads);
     RUN_TEST(import_refuses_obj_corner_that_is_not_a_whole_number);
     RUN_TEST(import_refuses_truncated_binary_ply);
+    RUN_TEST(import_refuses_binary_ply_ending_at_end_header);
     RUN_TEST(import_refuses_ply_whose_numbers_do_not_add_up);
     RUN_TEST(import_refuses_ply_lists_it_cannot_read);
     RUN_TEST(import_refuses_damaged_zstd_frame);

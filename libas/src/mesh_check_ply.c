@@ -107,7 +107,9 @@ static int next_header_line(ply_check_t *c, ply_word_t *words)
         }
         p = q;
     }
-    c->pos = end + 1;
+    /* Past the newline; a last line without one ends at the end of the
+     * data (the binary body's check counts what is left from here). */
+    c->pos = nl ? end + 1 : c->size;
     ++c->line;
     return n;
 }
