@@ -353,6 +353,15 @@ static void import_refuses_truncated_binary_ply(void)
     check_refused("truncated_binary.ply", AS_ERROR_PARSE, "the data ends in face 3 of 3");
 }
 
+/* Draco's decoder sizes its tables from the connectivity's counts before
+ * decoding any of it: these 180 bytes claim 606 million faces (14 GB and
+ * 37 s of the decoder's before it failed). Refused from the counts. */
+static void import_refuses_draco_counts_the_file_cannot_hold(void)
+{
+    check_refused("draco_claims_too_many_faces.drc", AS_ERROR_PARSE,
+                  "its connectivity claims 606366832 faces and 807874604 vertices, more than 180 bytes can hold");
+}
+
 /* A binary header whose 'end_header' is the file's last bytes, without a
  * newline: the body is empty, not somewhere past the end of the data. */
 static void import_refuses_binary_ply_ending_at_end_header(void)
@@ -701,6 +710,7 @@ int main(int argc, char **argv)
     RUN_TEST(import_refuses_obj_corner_that_is_not_a_whole_number);
     RUN_TEST(import_refuses_truncated_binary_ply);
     RUN_TEST(import_refuses_binary_ply_ending_at_end_header);
+    RUN_TEST(import_refuses_draco_counts_the_file_cannot_hold);
     RUN_TEST(import_refuses_ply_whose_numbers_do_not_add_up);
     RUN_TEST(import_refuses_ply_lists_it_cannot_read);
     RUN_TEST(import_refuses_damaged_zstd_frame);

@@ -7,8 +7,13 @@
  * are kept in Draco's order: the decoded mesh is the scene, and Draco
  * itself removed index-degenerate faces when it encoded it.
  */
+#include <draco/compression/config/compression_shared.h>
 #include <draco/compression/decode.h>
+#include <draco/compression/point_cloud/point_cloud_decoder.h>
+#include <draco/core/varint_decoding.h>
 #include <draco/mesh/mesh.h>
+#include <draco/metadata/geometry_metadata.h>
+#include <draco/metadata/metadata_decoder.h>
 
 #include <cstdint>
 #include <cstdlib>
@@ -54,8 +59,74 @@ const draco::PointAttribute *usable(const draco::Mesh &m, draco::GeometryAttribu
     }
 }
 
+/* A count of the connectivity as the decoder reads it: before 2.0 four
+ * bytes, then a varint. */
+bool connectivity_count(draco::DecoderBuffer *b, uint16_t version, uint32_t *v)
+{
+    if (version < DRACO_BITSTREAM_VERSION(2, 0)) return b->Decode(v);
+    return draco::DecodeVarint(v, b);
+}
+
+/* Draco's decoder sizes its tables from the face and vertex counts at the
+ * head of a mesh's connectivity before it decodes any of it: a file of 180
+ * bytes claiming 600 million faces made it take 14 GB and 37 s before it
+ * failed. The counts are read here as the decoder reads them (header,
+ * metadata, then the method's fields) and refused when no mesh that size
+ * could fit the file: real files hold 0.5 to 2.5 faces per byte, the bound
+ * is 256 per byte and a million more. Anything this reading cannot follow
+ * is left to the decoder, which fails on it as well. */
+as_error_t draco_counts_fit(const void *data, size_t size, const char *name)
+{
+    draco::DecoderBuffer b;
+    b.Init(static_cast<const char *>(data), size);
+    draco::DracoHeader header;
+    if (!draco::PointCloudDecoder::DecodeHeader(&b, &header).ok() || header.encoder_type != draco::TRIANGULAR_MESH)
+        return AS_OK;
+    const uint16_t version = DRACO_BITSTREAM_VERSION(header.version_major, header.version_minor);
+    b.set_bitstream_version(version);
+    if (version >= DRACO_BITSTREAM_VERSION(1, 3) && (header.flags & METADATA_FLAG_MASK)) {
+        draco::GeometryMetadata metadata;
+        draco::MetadataDecoder decoder;
+        if (!decoder.DecodeGeometryMetadata(&b, &metadata)) return AS_OK;
+    }
+    uint64_t faces, vertices;
+    if (header.encoder_method == draco::MESH_EDGEBREAKER_ENCODING) {
+        uint8_t traversal;
+        uint32_t new_vertices = 0, encoded_vertices, face_count, symbols, split_symbols;
+        uint8_t attribute_data;
+        if (!b.Decode(&traversal)) return AS_OK;
+        if (version < DRACO_BITSTREAM_VERSION(2, 2) && !connectivity_count(&b, version, &new_vertices)) return AS_OK;
+        if (!connectivity_count(&b, version, &encoded_vertices) || !connectivity_count(&b, version, &face_count) ||
+            !b.Decode(&attribute_data) || !connectivity_count(&b, version, &symbols) ||
+            !connectivity_count(&b, version, &split_symbols))
+            return AS_OK;
+        faces = face_count;
+        vertices = uint64_t(encoded_vertices) + split_symbols + new_vertices;
+    } else if (header.encoder_method == draco::MESH_SEQUENTIAL_ENCODING) {
+        uint32_t face_count, points;
+        if (version < DRACO_BITSTREAM_VERSION(2, 2)) {
+            if (!b.Decode(&face_count) || !b.Decode(&points)) return AS_OK;
+        } else if (!draco::DecodeVarint(&face_count, &b) || !draco::DecodeVarint(&points, &b)) {
+            return AS_OK;
+        }
+        faces = face_count;
+        vertices = points;
+    } else {
+        return AS_OK;
+    }
+    const uint64_t most = (uint64_t(1) << 20) + 256 * uint64_t(size);
+    if (faces > most || vertices > most)
+        return as_set_error(AS_ERROR_PARSE,
+                            "%s: cannot decode as Draco: its connectivity claims %llu faces and %llu vertices, "
+                            "more than %zu bytes can hold",
+                            name, (unsigned long long)faces, (unsigned long long)vertices, size);
+    return AS_OK;
+}
+
 as_error_t read_draco(const void *data, size_t size, const char *name, as_mesh_t *mesh)
 {
+    const as_error_t fits = draco_counts_fit(data, size, name);
+    if (fits != AS_OK) return fits;
     draco::DecoderBuffer buffer;
     buffer.Init(static_cast<const char *>(data), size);
     draco::Decoder decoder;
