@@ -13,7 +13,7 @@
  * ones reuse, the more so the more temporaries a builder has; the first
  * build's column says what a single build in a new process costs.
  *
- * Then the issue's targets, as ratios. On a shared machine a variant's N
+ * Then the build-time targets, as ratios. On a shared machine a variant's N
  * builds can fall in a slow stretch that its reference's builds miss, so
  * each ratio is also taken in R paired rounds (default 7, after one round
  * not counted): one round builds binned SAH, Embree medium, SBVH, Embree
@@ -368,7 +368,7 @@ int main(int argc, char **argv)
         if (md) fprintf(md, "| Embree 3 medium | %.1f | %.1f | %.2f | | | |\n| Embree 3 high (spatial splits) | %.1f | %.1f | %.2f | | | |\n",
                         em, em_first, mtri / (em / 1e3), eh, eh_first, mtri / (eh / 1e3));
 
-        /* The issue's targets, as ratios within this run: the paired rounds'
+        /* The build-time targets, as ratios within this run: the paired rounds'
          * medians, or without rounds those of the table's medians. */
         const result *mid = &res[0], *bin = &res[1], *sweep = &res[2], *sbvh = &res[3], *kdsah = &res[5], *bih = &res[8],
                      *grid = &res[10];
