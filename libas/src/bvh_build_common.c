@@ -604,7 +604,6 @@ void bvh_pending_offer(bvh_builder *b, as_task_pool *pool, as_pending_stack *s)
     if (p) p->given = bvh_share_task(b, pool, p->task);
 }
 
-
 uint32_t bvh_find_small_split(bvh_ref *refs, uint32_t count, double *cost)
 {
     *cost = INFINITY;

@@ -763,14 +763,13 @@ __attribute__((target("avx2"))) static void clip_ref_split_avx2(const as_tri4_t 
  * The vector forms make the same bits as they clip (clipped_ref_finish). */
 static unsigned clipped_keep(const kd_ref *old, const kd_ref *now)
 {
-    const int s = 0;
     unsigned keep = 0;
     for (int a = 0; a < 3; ++a) {
         if (old->lo[a] == old->hi[a]) {
-            keep |= KD_KEEP_BIT(s, a, 0);
+            keep |= KD_KEEP_BIT(0, a, 0);
         } else if (now->lo[a] != now->hi[a]) {
-            if (now->lo[a] == old->lo[a]) keep |= KD_KEEP_BIT(s, a, 0);
-            if (now->hi[a] == old->hi[a]) keep |= KD_KEEP_BIT(s, a, 1);
+            if (now->lo[a] == old->lo[a]) keep |= KD_KEEP_BIT(0, a, 0);
+            if (now->hi[a] == old->hi[a]) keep |= KD_KEEP_BIT(0, a, 1);
         }
     }
     return keep;
@@ -1025,9 +1024,6 @@ static void partition_fill_chunks(kd_partition *p)
     p->clipped_at[1] = sum[3];
 }
 
-/* Builds the subtree of task t: recurses into the left child and loops on
- * the right one, and hands the right child to an idle thread when it is big
- * enough to be worth it. */
 /* Hands the oldest right child this task has not started to a waiting
  * thread, if one waits (task_pool.h). */
 static void offer_pending(as_task_pool *pool, kd_scratch *sc)
@@ -1036,6 +1032,9 @@ static void offer_pending(as_task_pool *pool, kd_scratch *sc)
     if (p) p->given = as_task_pool_push(pool, p->task);
 }
 
+/* Builds the subtree of task t: recurses into the left child and loops on
+ * the right one, and hands the right child to an idle thread when it is big
+ * enough to be worth it. */
 static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_task t)
 {
     const kd_ctx *c = run->c;
@@ -1088,13 +1087,13 @@ static void build_subtree(as_task_pool *pool, kd_run *run, kd_scratch *sc, kd_ta
             *t.slot = make_leaf(run, sc, refs, n, t.pooled, t.state, t.depth, t.weight);
             return;
         }
-        /* Each child's box copied from the node's, then its plane set: a
-         * copy of a box just written a float at a time would wait for those
-         * stores. */
         part.out[0] = lr;
         part.out[1] = rr;
         part.side = hand_down ? sc->side : NULL;
         memcpy(part.node_box, box, sizeof part.node_box);
+        /* Each child's box copied from the node's, then its plane set (here
+         * and for the tasks below): a copy of a box just written a float at
+         * a time would wait for those stores. */
         memcpy(part.box[0], box, sizeof part.box[0]);
         memcpy(part.box[1], box, sizeof part.box[1]);
         part.box[0][sp.axis + 3] = sp.pos;
